@@ -1,0 +1,18 @@
+//! drape simulates cloth and other mass-spring bodies, as a library, a command-line tool and an
+//! HTTP service.
+//!
+//! # Layout
+//! - [`solver`]: the physics. Pure, synchronous, deterministic; no I/O, no serde, no async.
+//! - [`scene`]: the public JSON contract for a scene: types, defaults, validation, and its
+//!   compilation into solver inputs.
+//! - [`run`]: runs one compiled scene to a [`run::Recording`]: steps it, records the frames and
+//!   fields asked for, watches for divergence.
+//! - [`output`]: encoders that turn a recording into the bytes a client asked for.
+//!
+//! Data flows one way: scene JSON → [`scene::Scene`] → [`scene::Compiled`] → [`run::execute`] →
+//! [`run::Recording`] → [`output`].
+
+pub mod output;
+pub mod run;
+pub mod scene;
+pub mod solver;

@@ -1,0 +1,198 @@
+//! Running one compiled scene: stepping it, recording the frames and fields asked for, and
+//! reporting how it went.
+//!
+//! [`execute`] is synchronous and blocking; the command line calls it directly and the job
+//! workers call it on their own threads. It steps in batches, and between batches publishes
+//! progress and honours cancellation through a [`Control`] shared with the caller (atomics only,
+//! so the step loop takes no lock). Only the fields the scene asks for are computed.
+
+mod control;
+mod recording;
+mod schedule;
+
+use std::time::Instant;
+
+pub use control::Control;
+pub use recording::{Diverged, Frames, Recording, Samples, Stats, Status};
+
+use crate::scene::{Compiled, Field, Precision};
+use crate::solver::{Real, Simulation, Vec3};
+use schedule::FrameSchedule;
+
+/// Steps between checks of cancellation, progress and rest, when no frame falls sooner.
+const BATCH: u64 = 64;
+
+/// Runs a compiled scene to the end, to divergence, to rest, or until cancelled.
+pub fn execute(compiled: &Compiled, control: &Control) -> Recording {
+    match compiled.precision {
+        Precision::F32 => execute_in::<f32>(compiled, control),
+        Precision::F64 => execute_in::<f64>(compiled, control),
+    }
+}
+
+fn execute_in<T: Real>(compiled: &Compiled, control: &Control) -> Recording
+where
+    Samples: From<Vec<T>>,
+{
+    let started = Instant::now();
+    let mut simulation = Simulation::<T>::new(&compiled.model, &compiled.config);
+    let schedule = FrameSchedule::new(compiled);
+    let mut recorder = Recorder::<T>::new(compiled, &simulation);
+    let mut next_frame = 0;
+    let mut status = Status::Succeeded;
+    let mut divergence = None;
+    let mut rest_time = None;
+
+    loop {
+        let taken = simulation.steps_taken();
+        if schedule.steps.get(next_frame) == Some(&taken) {
+            recorder.record(&simulation, schedule.time_of(taken));
+            next_frame += 1;
+        }
+        if taken >= compiled.steps {
+            break;
+        }
+        if control.is_cancelled() {
+            status = Status::Cancelled;
+            break;
+        }
+        if let Some(speed) = compiled.stop_at_rest {
+            if taken > 0 && at_rest(simulation.state().velocities.as_slice(), speed) {
+                rest_time = Some(schedule.time_of(taken));
+                if schedule.steps.get(next_frame.wrapping_sub(1)) != Some(&taken) {
+                    recorder.record(&simulation, schedule.time_of(taken));
+                }
+                break;
+            }
+        }
+        let target = schedule.steps.get(next_frame).copied().unwrap_or(compiled.steps).min(taken + BATCH);
+        if let Err(d) = (taken..target).try_for_each(|_| simulation.step()) {
+            status = Status::Diverged;
+            divergence = Some(d);
+            break;
+        }
+        control.set_progress(simulation.steps_taken());
+    }
+    control.set_progress(simulation.steps_taken());
+
+    let finished = status == Status::Succeeded;
+    let stable_dt = simulation.stable_dt();
+    let mut stages: Vec<&'static str> = simulation.stages().to_vec();
+    if compiled.output.fields.contains(&Field::Normals) && !compiled.model.triangles.is_empty() {
+        stages.push("normals");
+    }
+    let stats = Stats {
+        status,
+        wall_time_s: started.elapsed().as_secs_f64(),
+        steps: simulation.steps_taken(),
+        dt: simulation.dt(),
+        dt_source: compiled.dt_source,
+        integrator: simulation.integrator(),
+        precision: compiled.precision,
+        stages,
+        energy: finished.then(|| simulation.energy()),
+        max_strain: finished.then(|| simulation.max_strain()),
+        stable_dt,
+        diverged: divergence.map(|d| Diverged {
+            step: d.step,
+            t: d.time,
+            reason: d.reason.to_string(),
+            suggested_dt: stable_dt.map(|h| 0.5 * h),
+        }),
+        stopped_at_rest: rest_time,
+        linear_solver: simulation.linear_solve_stats(),
+    };
+    recorder.finish(compiled, stats, finished)
+}
+
+fn at_rest<T: Real>(velocities: &[Vec3<T>], speed: f64) -> bool {
+    let limit = T::from_f64(speed * speed);
+    velocities.iter().all(|v| v.length_squared() < limit)
+}
+
+/// Accumulates the fields of each recorded frame into flat buffers.
+struct Recorder<T> {
+    frames: FrameBuffers<T>,
+    normals_scratch: Vec<Vec3<T>>,
+    strain_scratch: Vec<f64>,
+}
+
+struct FrameBuffers<T> {
+    times: Vec<f64>,
+    positions: Option<Vec<T>>,
+    velocities: Option<Vec<T>>,
+    normals: Option<Vec<T>>,
+    energy: Option<Vec<crate::solver::Energy>>,
+    strain: Option<Vec<f64>>,
+}
+
+impl<T: Real> Recorder<T>
+where
+    Samples: From<Vec<T>>,
+{
+    fn new(compiled: &Compiled, simulation: &Simulation<T>) -> Self {
+        let wants = |f: Field| compiled.output.fields.contains(&f);
+        let n = compiled.model.particle_count();
+        Self {
+            frames: FrameBuffers {
+                times: Vec::new(),
+                positions: wants(Field::Positions).then(Vec::new),
+                velocities: wants(Field::Velocities).then(Vec::new),
+                normals: wants(Field::Normals).then(Vec::new),
+                energy: wants(Field::Energy).then(Vec::new),
+                strain: wants(Field::Strain).then(Vec::new),
+            },
+            normals_scratch: if wants(Field::Normals) { vec![Vec3::ZERO; n] } else { Vec::new() },
+            strain_scratch: if wants(Field::Strain) {
+                vec![0.0; simulation.dynamics().springs.len()]
+            } else {
+                Vec::new()
+            },
+        }
+    }
+
+    fn record(&mut self, simulation: &Simulation<T>, t: f64) {
+        let f = &mut self.frames;
+        f.times.push(t);
+        let state = simulation.state();
+        if let Some(buffer) = &mut f.positions {
+            buffer.extend(state.positions.iter().flat_map(|p| p.to_array()));
+        }
+        if let Some(buffer) = &mut f.velocities {
+            buffer.extend(state.velocities.iter().flat_map(|v| v.to_array()));
+        }
+        if let Some(buffer) = &mut f.normals {
+            simulation.vertex_normals(&mut self.normals_scratch);
+            buffer.extend(self.normals_scratch.iter().flat_map(|n| n.to_array()));
+        }
+        if let Some(buffer) = &mut f.energy {
+            buffer.push(simulation.energy());
+        }
+        if let Some(buffer) = &mut f.strain {
+            simulation.spring_strains(&mut self.strain_scratch);
+            buffer.extend_from_slice(&self.strain_scratch);
+        }
+    }
+
+    fn finish(self, compiled: &Compiled, stats: Stats, finished: bool) -> Recording {
+        let f = self.frames;
+        let has_final = finished && !f.times.is_empty();
+        Recording {
+            particles: compiled.model.particle_count(),
+            springs: compiled.model.springs.len(),
+            triangles: compiled.model.triangles.clone(),
+            bodies: compiled.bodies.clone(),
+            selection: compiled.output.frames,
+            frames: Frames {
+                times: f.times,
+                positions: f.positions.map(Samples::from),
+                velocities: f.velocities.map(Samples::from),
+                normals: f.normals.map(Samples::from),
+                energy: f.energy,
+                strain: f.strain,
+            },
+            has_final,
+            stats,
+        }
+    }
+}

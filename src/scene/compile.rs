@@ -1,0 +1,222 @@
+//! Turning a valid scene into the solver's inputs and a plan for the run.
+//!
+//! Time follows the contract: `steps = ceil(duration / dt)` (with a relative slack of 1e-9 so
+//! that an exact division gains no step) and `dt = duration / steps`, so the step never grows
+//! and the last step lands on `duration`. Without a `dt`, the explicit integrators take half the
+//! scene's stability bound (see [`solver::stable_step`]); implicit Euler, stable at any step,
+//! takes a quarter of the frame interval, or that half-bound if it is larger. A scene with
+//! nothing that bounds the step (no springs, no drag) also takes a quarter of the frame interval.
+
+use glam::DVec3;
+
+use super::types::{Body, IntegratorName, OrientationName, Output, Precision, Scene, SpringSpec};
+use crate::solver::{self, IntegratorKind, IntegratorSettings, Model, SpringParams};
+
+/// Where a run's step came from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum DtSource {
+    /// The scene's `dt` (possibly shortened to divide `duration` evenly).
+    Scene,
+    /// Chosen from the scene's stability bound.
+    Stability,
+}
+
+impl DtSource {
+    /// The name the contract uses.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Scene => "scene",
+            Self::Stability => "stability",
+        }
+    }
+}
+
+/// A body's place among the particles.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct BodyInfo {
+    /// Its name, given or defaulted.
+    pub name: String,
+    /// Its `type`.
+    pub kind: &'static str,
+    /// Index of its first particle.
+    pub offset: usize,
+    /// Number of particles.
+    pub count: usize,
+}
+
+/// A scene ready to run: the solver's inputs and the plan around them.
+#[derive(Clone, Debug)]
+pub struct Compiled {
+    /// Particles, springs, triangles.
+    pub model: Model,
+    /// Integrator, step, gravity, drag.
+    pub config: solver::Config,
+    /// Arithmetic precision.
+    pub precision: Precision,
+    /// Simulated time, in seconds.
+    pub duration: f64,
+    /// Steps to take.
+    pub steps: u64,
+    /// Where the step came from.
+    pub dt_source: DtSource,
+    /// The bodies' names and particle ranges.
+    pub bodies: Vec<BodyInfo>,
+    /// What to record.
+    pub output: Output,
+    /// Stop early once every particle is slower than this, in m/s.
+    pub stop_at_rest: Option<f64>,
+}
+
+impl Compiled {
+    /// The same run at another step, for the companion runs of an error estimate: `steps` is
+    /// divided by `factor` (at least one step) and `dt` grows to match.
+    pub fn with_coarser_step(&self, factor: u64) -> Self {
+        let steps = (self.steps / factor).max(1);
+        let mut coarse = self.clone();
+        coarse.steps = steps;
+        coarse.config.dt = self.duration / steps as f64;
+        coarse
+    }
+}
+
+impl IntegratorName {
+    /// The solver's integrator of that name.
+    pub fn kind(self) -> IntegratorKind {
+        match self {
+            Self::ExplicitEuler => IntegratorKind::ExplicitEuler,
+            Self::SymplecticEuler => IntegratorKind::SymplecticEuler,
+            Self::Verlet => IntegratorKind::Verlet,
+            Self::Rk4 => IntegratorKind::Rk4,
+            Self::ImplicitEuler => IntegratorKind::ImplicitEuler,
+        }
+    }
+}
+
+impl Scene {
+    /// Builds the model and plans the run.
+    pub fn compile(&self) -> Compiled {
+        let mut model = Model::default();
+        let bodies = self
+            .bodies
+            .iter()
+            .enumerate()
+            .map(|(index, body)| {
+                let range = add_body(&mut model, body);
+                BodyInfo {
+                    name: body.name().map_or_else(|| format!("{}{index}", body.type_name()), str::to_string),
+                    kind: body.type_name(),
+                    offset: range.start,
+                    count: range.len(),
+                }
+            })
+            .collect();
+
+        let integrator = self.integrator.kind();
+        let (target_dt, dt_source) = match self.dt {
+            Some(dt) => (dt, DtSource::Scene),
+            None => (self.automatic_dt(&model, integrator), DtSource::Stability),
+        };
+        let steps = ((self.duration / target_dt) * (1.0 - 1e-9)).ceil().max(1.0) as u64;
+        let config = solver::Config {
+            integrator,
+            settings: IntegratorSettings {
+                verlet_damping: self.verlet_damping,
+                tolerance: self.solver.tolerance,
+                max_iterations: self.solver.max_iterations,
+            },
+            dt: self.duration / steps as f64,
+            gravity: DVec3::from_array(self.gravity),
+            drag: self.drag,
+        };
+        Compiled {
+            model,
+            config,
+            precision: self.precision,
+            duration: self.duration,
+            steps,
+            dt_source,
+            bodies,
+            output: self.output.clone(),
+            stop_at_rest: self.stop_at_rest,
+        }
+    }
+
+    fn automatic_dt(&self, model: &Model, integrator: IntegratorKind) -> f64 {
+        let frame_quarter = 0.25 / self.output.fps;
+        let half_bound =
+            solver::stable_step(model, self.drag).map(|h| 0.5 * h * integrator.stability_factor());
+        let dt = match (integrator, half_bound) {
+            (_, None) => frame_quarter,
+            (IntegratorKind::ImplicitEuler, Some(h)) => h.max(frame_quarter),
+            (_, Some(h)) => h,
+        };
+        dt.min(self.duration)
+    }
+}
+
+fn params(spec: SpringSpec) -> SpringParams {
+    SpringParams { stiffness: spec.k, damping: spec.damping }
+}
+
+fn add_body(model: &mut Model, body: &Body) -> std::ops::Range<usize> {
+    let v = DVec3::from_array;
+    match body {
+        Body::Cloth(c) => model.add_cloth(&solver::Cloth {
+            size: c.size,
+            resolution: c.resolution,
+            center: v(c.center),
+            orientation: match c.orientation {
+                OrientationName::Horizontal => solver::Orientation::Horizontal,
+                OrientationName::Vertical => solver::Orientation::Vertical,
+            },
+            mass: c.mass,
+            velocity: v(c.velocity),
+            structural: params(c.springs.structural),
+            shear: params(c.springs.shear),
+            bending: params(c.springs.bending),
+            pins: c.pin.clone(),
+        }),
+        Body::Chain(c) => model.add_chain(&solver::Chain {
+            start: v(c.start),
+            end: v(c.end),
+            count: c.count,
+            mass: c.mass,
+            velocity: v(c.velocity),
+            spring: SpringParams { stiffness: c.spring.k, damping: c.spring.damping },
+            rest_length: c.spring.rest_length,
+            pins: c.pin.clone(),
+        }),
+        Body::Lattice(l) => model.add_lattice(&solver::Lattice {
+            size: l.size,
+            resolution: l.resolution,
+            center: v(l.center),
+            mass: l.mass,
+            velocity: v(l.velocity),
+            structural: params(l.springs.structural),
+            shear: params(l.springs.shear),
+            bending: params(l.springs.bending),
+            pins: l.pin.clone(),
+        }),
+        Body::Mesh(m) => model.add_mesh(&solver::Mesh {
+            vertices: m.vertex_positions(),
+            triangles: m.triangle_indices(),
+            mass: m.mass,
+            velocity: v(m.velocity),
+            structural: params(m.springs.structural),
+            bending: params(m.springs.bending),
+            pins: m.pin.clone(),
+        }),
+    }
+}
+
+impl super::types::MeshSpec {
+    /// The flat `vertices` as points.
+    pub fn vertex_positions(&self) -> Vec<DVec3> {
+        self.vertices.chunks_exact(3).map(|c| DVec3::new(c[0], c[1], c[2])).collect()
+    }
+
+    /// The flat `triangles` as index triples.
+    pub fn triangle_indices(&self) -> Vec<[usize; 3]> {
+        self.triangles.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect()
+    }
+}

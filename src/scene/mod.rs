@@ -1,0 +1,17 @@
+//! The public JSON contract for a scene: types, defaults, validation, and compilation into the
+//! solver's inputs.
+//!
+//! Every field but `duration` and `bodies` has a default, stated on the field. Unknown fields are
+//! refused. [`Scene::from_json`] returns either a scene in which every number is finite and
+//! within its physical range, or every problem found, each naming its field by JSON Pointer
+//! (RFC 6901). This module knows the solver's inputs but nothing of HTTP.
+
+mod compile;
+mod error;
+mod parse;
+mod types;
+mod validate;
+
+pub use compile::{BodyInfo, Compiled, DtSource};
+pub use error::{FieldError, SceneError};
+pub use types::*;

@@ -1,0 +1,463 @@
+//! The scene's types, as the JSON spells them, with their defaults.
+
+use serde::Deserialize;
+
+/// A scene: the bodies, the forces on them, how to integrate and what to record.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Scene {
+    /// Simulated time, in seconds (required, positive). The last frame is at exactly `duration`.
+    pub duration: f64,
+    /// Integration method (default `symplectic_euler`).
+    pub integrator: IntegratorName,
+    /// Step, in seconds; left out, one below the scene's stability bound is chosen.
+    pub dt: Option<f64>,
+    /// Arithmetic precision of the run (default `f64`).
+    pub precision: Precision,
+    /// Gravitational acceleration, in m/s² (default `[0, -9.81, 0]`).
+    pub gravity: [f64; 3],
+    /// Drag rate, in 1/s: each particle feels `-drag · m · v` (default 0).
+    pub drag: f64,
+    /// Verlet's damping factor: the fraction of velocity removed per step, in [0, 1) (default 0).
+    pub verlet_damping: f64,
+    /// Settings of implicit Euler's linear solver.
+    pub solver: SolverSettings,
+    /// End the run early once every particle is slower than this, in m/s (default: never).
+    pub stop_at_rest: Option<f64>,
+    /// The bodies, in order; particle indices in results run over them in this order.
+    pub bodies: Vec<Body>,
+    /// What to record and how to encode it.
+    pub output: Output,
+}
+
+/// The top level of a scene as parsed, before its bodies are read by type.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct RawScene {
+    pub duration: f64,
+    #[serde(default)]
+    pub integrator: IntegratorName,
+    #[serde(default)]
+    pub dt: Option<f64>,
+    #[serde(default)]
+    pub precision: Precision,
+    #[serde(default = "default_gravity")]
+    pub gravity: [f64; 3],
+    #[serde(default)]
+    pub drag: f64,
+    #[serde(default)]
+    pub verlet_damping: f64,
+    #[serde(default)]
+    pub solver: SolverSettings,
+    #[serde(default)]
+    pub stop_at_rest: Option<f64>,
+    pub bodies: Vec<serde_json::Value>,
+    #[serde(default)]
+    pub output: Output,
+}
+
+fn default_gravity() -> [f64; 3] {
+    [0.0, -9.81, 0.0]
+}
+
+/// The integration methods, as the JSON names them.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum IntegratorName {
+    /// Forward Euler.
+    ExplicitEuler,
+    /// Semi-implicit Euler (the default).
+    #[default]
+    SymplecticEuler,
+    /// Position Verlet with damping.
+    Verlet,
+    /// Classic fourth-order Runge-Kutta.
+    Rk4,
+    /// Linearised backward Euler with conjugate gradients.
+    ImplicitEuler,
+}
+
+/// Arithmetic precision.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Precision {
+    /// Single precision.
+    F32,
+    /// Double precision (the default).
+    #[default]
+    F64,
+}
+
+impl Precision {
+    /// The name the contract uses.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::F32 => "f32",
+            Self::F64 => "f64",
+        }
+    }
+}
+
+/// Settings of implicit Euler's conjugate-gradient solve.
+#[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct SolverSettings {
+    /// Relative residual at which a solve stops, in (0, 1) (default 1e-6).
+    pub tolerance: f64,
+    /// Iteration cap per solve, at least 1 (default 200).
+    pub max_iterations: usize,
+}
+
+impl Default for SolverSettings {
+    fn default() -> Self {
+        Self { tolerance: 1e-6, max_iterations: 200 }
+    }
+}
+
+/// A body, by its `type`.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Body {
+    /// A rectangular sheet.
+    Cloth(ClothSpec),
+    /// Particles in a line.
+    Chain(ChainSpec),
+    /// A 3-D block.
+    Lattice(LatticeSpec),
+    /// A triangle mesh.
+    Mesh(MeshSpec),
+}
+
+impl Body {
+    /// The `type` as the JSON spells it.
+    pub fn type_name(&self) -> &'static str {
+        match self {
+            Self::Cloth(_) => "cloth",
+            Self::Chain(_) => "chain",
+            Self::Lattice(_) => "lattice",
+            Self::Mesh(_) => "mesh",
+        }
+    }
+
+    /// The body's name, if it was given one.
+    pub fn name(&self) -> Option<&str> {
+        match self {
+            Self::Cloth(b) => b.name.as_deref(),
+            Self::Chain(b) => b.name.as_deref(),
+            Self::Lattice(b) => b.name.as_deref(),
+            Self::Mesh(b) => b.name.as_deref(),
+        }
+    }
+
+    /// How many particles the body will have, computed without building it (saturating).
+    pub fn particle_count(&self) -> u64 {
+        match self {
+            Self::Cloth(c) => product(&c.resolution),
+            Self::Chain(c) => c.count as u64,
+            Self::Lattice(l) => product(&l.resolution),
+            Self::Mesh(m) => (m.vertices.len() / 3) as u64,
+        }
+    }
+
+    /// How many springs the body will have, computed without building it (saturating; an upper
+    /// bound for meshes).
+    pub fn spring_count(&self) -> u64 {
+        let pairs = |n: u64, reach: u64| n.saturating_sub(reach);
+        match self {
+            Self::Cloth(c) => {
+                let (nx, ny) = (c.resolution[0] as u64, c.resolution[1] as u64);
+                let grid = |di: u64, dj: u64| pairs(nx, di).saturating_mul(pairs(ny, dj));
+                [grid(1, 0), grid(0, 1), grid(1, 1), grid(1, 1), grid(2, 0), grid(0, 2)]
+                    .into_iter()
+                    .fold(0, u64::saturating_add)
+            }
+            Self::Chain(c) => (c.count as u64).saturating_sub(1),
+            Self::Lattice(l) => product(&l.resolution).saturating_mul(16),
+            Self::Mesh(m) => (m.triangles.len() as u64 / 3).saturating_mul(6),
+        }
+    }
+}
+
+fn product(values: &[usize]) -> u64 {
+    values.iter().fold(1u64, |acc, &n| acc.saturating_mul(n as u64))
+}
+
+/// A spring family's stiffness and damping.
+#[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SpringSpec {
+    /// Stiffness, in N/m per spring (positive).
+    pub k: f64,
+    /// Damping along the spring, in N·s/m (at least 0; default 0).
+    #[serde(default)]
+    pub damping: f64,
+}
+
+/// Springs of a cloth or lattice.
+#[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct GridSprings {
+    /// Neighbours (default k 5000, damping 0.5).
+    pub structural: SpringSpec,
+    /// Diagonals (default k 500, damping 0.2).
+    pub shear: SpringSpec,
+    /// Two apart (default k 50, damping 0.1).
+    pub bending: SpringSpec,
+}
+
+impl Default for GridSprings {
+    fn default() -> Self {
+        Self {
+            structural: SpringSpec { k: 5000.0, damping: 0.5 },
+            shear: SpringSpec { k: 500.0, damping: 0.2 },
+            bending: SpringSpec { k: 50.0, damping: 0.1 },
+        }
+    }
+}
+
+/// Springs of a mesh.
+#[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct MeshSprings {
+    /// Along edges (default k 5000, damping 0.5).
+    pub structural: SpringSpec,
+    /// Across shared edges (default k 50, damping 0.1).
+    pub bending: SpringSpec,
+}
+
+impl Default for MeshSprings {
+    fn default() -> Self {
+        let grid = GridSprings::default();
+        Self { structural: grid.structural, bending: grid.bending }
+    }
+}
+
+/// The plane a cloth starts in.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum OrientationName {
+    /// In the x-z plane (the default).
+    #[default]
+    Horizontal,
+    /// In the x-y plane, row `j = 0` on top.
+    Vertical,
+}
+
+/// A cloth: particle `(i, j)` is index `j * nx + i`, `i` along `size[0]`.
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ClothSpec {
+    /// Name in results (default `cloth<index>`).
+    pub name: Option<String>,
+    /// Extent, in metres (default `[1, 1]`).
+    pub size: [f64; 2],
+    /// Particles along each side, each at least 2 (default `[32, 32]`).
+    pub resolution: [usize; 2],
+    /// Centre, in metres (default `[0, 1, 0]`).
+    pub center: [f64; 3],
+    /// Starting plane (default `horizontal`).
+    pub orientation: OrientationName,
+    /// Total mass, in kg (default 0.5).
+    pub mass: f64,
+    /// Initial velocity of every particle, in m/s (default 0).
+    pub velocity: [f64; 3],
+    /// Spring families.
+    pub springs: GridSprings,
+    /// Pinned particles as `[i, j]`.
+    pub pin: Vec<[usize; 2]>,
+}
+
+impl Default for ClothSpec {
+    fn default() -> Self {
+        Self {
+            name: None,
+            size: [1.0, 1.0],
+            resolution: [32, 32],
+            center: [0.0, 1.0, 0.0],
+            orientation: OrientationName::Horizontal,
+            mass: 0.5,
+            velocity: [0.0; 3],
+            springs: GridSprings::default(),
+            pin: Vec::new(),
+        }
+    }
+}
+
+/// A chain's spring.
+#[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ChainSpring {
+    /// Stiffness, in N/m (positive).
+    pub k: f64,
+    /// Damping, in N·s/m (default 0).
+    #[serde(default)]
+    pub damping: f64,
+    /// Rest length of every link, in metres (default: the initial spacing).
+    #[serde(default)]
+    pub rest_length: Option<f64>,
+}
+
+impl Default for ChainSpring {
+    fn default() -> Self {
+        Self { k: 100.0, damping: 0.0, rest_length: None }
+    }
+}
+
+/// A chain: `count` particles evenly from `start` to `end`.
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ChainSpec {
+    /// Name in results (default `chain<index>`).
+    pub name: Option<String>,
+    /// First particle, in metres (default `[0, 1, 0]`).
+    pub start: [f64; 3],
+    /// Last particle, in metres (default `[1, 1, 0]`).
+    pub end: [f64; 3],
+    /// Particles, at least 2 (default 10).
+    pub count: usize,
+    /// Total mass, in kg (default 0.1).
+    pub mass: f64,
+    /// Initial velocity, in m/s (default 0).
+    pub velocity: [f64; 3],
+    /// The links (default k 100, damping 0).
+    pub spring: ChainSpring,
+    /// Pinned particle indices.
+    pub pin: Vec<usize>,
+}
+
+impl Default for ChainSpec {
+    fn default() -> Self {
+        Self {
+            name: None,
+            start: [0.0, 1.0, 0.0],
+            end: [1.0, 1.0, 0.0],
+            count: 10,
+            mass: 0.1,
+            velocity: [0.0; 3],
+            spring: ChainSpring::default(),
+            pin: Vec::new(),
+        }
+    }
+}
+
+/// A 3-D block: particle `(i, j, k)` is index `(k * ny + j) * nx + i`.
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct LatticeSpec {
+    /// Name in results (default `lattice<index>`).
+    pub name: Option<String>,
+    /// Extent, in metres (default `[0.2, 0.2, 0.2]`).
+    pub size: [f64; 3],
+    /// Particles along each axis, each at least 2 (default `[6, 6, 6]`).
+    pub resolution: [usize; 3],
+    /// Centre, in metres (default `[0, 0.5, 0]`).
+    pub center: [f64; 3],
+    /// Total mass, in kg (default 1).
+    pub mass: f64,
+    /// Initial velocity, in m/s (default 0).
+    pub velocity: [f64; 3],
+    /// Spring families.
+    pub springs: GridSprings,
+    /// Pinned particles as `[i, j, k]`.
+    pub pin: Vec<[usize; 3]>,
+}
+
+impl Default for LatticeSpec {
+    fn default() -> Self {
+        Self {
+            name: None,
+            size: [0.2, 0.2, 0.2],
+            resolution: [6, 6, 6],
+            center: [0.0, 0.5, 0.0],
+            mass: 1.0,
+            velocity: [0.0; 3],
+            springs: GridSprings::default(),
+            pin: Vec::new(),
+        }
+    }
+}
+
+/// A triangle mesh.
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MeshSpec {
+    /// Name in results (default `mesh<index>`).
+    #[serde(default)]
+    pub name: Option<String>,
+    /// Flat vertex coordinates `[x0, y0, z0, x1, ...]`, in metres (required).
+    pub vertices: Vec<f64>,
+    /// Flat vertex indices, three per triangle (required).
+    pub triangles: Vec<usize>,
+    /// Total mass, spread by area, in kg (default 0.5).
+    #[serde(default = "default_mesh_mass")]
+    pub mass: f64,
+    /// Initial velocity, in m/s (default 0).
+    #[serde(default)]
+    pub velocity: [f64; 3],
+    /// Spring families.
+    #[serde(default)]
+    pub springs: MeshSprings,
+    /// Pinned vertex indices.
+    #[serde(default)]
+    pub pin: Vec<usize>,
+}
+
+fn default_mesh_mass() -> f64 {
+    0.5
+}
+
+/// What a run records and how it is encoded.
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Output {
+    /// Frames per simulated second for `frames: all` (default 30).
+    pub fps: f64,
+    /// Which frames to keep (default `all`).
+    pub frames: FrameSelection,
+    /// Which fields each frame carries (default `["positions"]`).
+    pub fields: Vec<Field>,
+    /// The encoding of the result (default `json`).
+    pub format: Format,
+}
+
+impl Default for Output {
+    fn default() -> Self {
+        Self { fps: 30.0, frames: FrameSelection::All, fields: vec![Field::Positions], format: Format::Json }
+    }
+}
+
+/// Which frames a result keeps.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum FrameSelection {
+    /// One every `1/fps` seconds from 0 to the end, inclusive (the default).
+    #[default]
+    All,
+    /// Only the state at the end.
+    Final,
+    /// None: statistics only.
+    None,
+}
+
+/// A per-frame field.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Field {
+    /// Particle positions, flat `[x0, y0, z0, ...]`.
+    Positions,
+    /// Particle velocities, flat.
+    Velocities,
+    /// Unit vertex normals, flat (zero off any surface).
+    Normals,
+    /// Kinetic, gravitational and spring energy.
+    Energy,
+    /// Strain `(l - L) / L` of every spring, in spring order.
+    Strain,
+}
+
+/// Encodings of a result.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Format {
+    /// JSON (the default).
+    #[default]
+    Json,
+}

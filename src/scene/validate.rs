@@ -1,0 +1,206 @@
+//! The rules a parsed scene must meet beyond its types: finite numbers, physical ranges and
+//! indices in range.
+
+use super::error::FieldError;
+use super::types::{Body, GridSprings, Scene, SpringSpec};
+
+/// Collects problems, each at its JSON Pointer.
+struct Problems(Vec<FieldError>);
+
+impl Problems {
+    fn add(&mut self, pointer: impl Into<String>, detail: impl Into<String>) {
+        self.0.push(FieldError::new(pointer, detail));
+    }
+
+    fn finite(&mut self, pointer: &str, values: &[f64]) -> bool {
+        let ok = values.iter().all(|v| v.is_finite());
+        if !ok {
+            self.add(pointer, "must be a finite number");
+        }
+        ok
+    }
+
+    fn positive(&mut self, pointer: &str, value: f64) {
+        if self.finite(pointer, &[value]) && value <= 0.0 {
+            self.add(pointer, format!("must be positive, got {value}"));
+        }
+    }
+
+    fn non_negative(&mut self, pointer: &str, value: f64) {
+        if self.finite(pointer, &[value]) && value < 0.0 {
+            self.add(pointer, format!("must not be negative, got {value}"));
+        }
+    }
+
+    fn all_positive(&mut self, pointer: &str, values: &[f64]) {
+        for (axis, &v) in values.iter().enumerate() {
+            self.positive(&format!("{pointer}/{axis}"), v);
+        }
+    }
+
+    fn resolution(&mut self, pointer: &str, values: &[usize]) {
+        for (axis, &n) in values.iter().enumerate() {
+            if n < 2 {
+                self.add(format!("{pointer}/{axis}"), format!("must be at least 2, got {n}"));
+            }
+        }
+    }
+
+    fn spring(&mut self, pointer: &str, spring: &SpringSpec) {
+        self.positive(&format!("{pointer}/k"), spring.k);
+        self.non_negative(&format!("{pointer}/damping"), spring.damping);
+    }
+
+    fn grid_springs(&mut self, pointer: &str, springs: &GridSprings) {
+        self.spring(&format!("{pointer}/structural"), &springs.structural);
+        self.spring(&format!("{pointer}/shear"), &springs.shear);
+        self.spring(&format!("{pointer}/bending"), &springs.bending);
+    }
+
+    fn pins<const N: usize>(&mut self, pointer: &str, pins: &[[usize; N]], extent: [usize; N]) {
+        for (p, pin) in pins.iter().enumerate() {
+            for axis in 0..N {
+                if pin[axis] >= extent[axis] {
+                    self.add(
+                        format!("{pointer}/{p}/{axis}"),
+                        format!(
+                            "index {} is out of range: the resolution there is {}",
+                            pin[axis], extent[axis]
+                        ),
+                    );
+                }
+            }
+        }
+    }
+
+    fn indices(&mut self, pointer: &str, indices: &[usize], count: usize, what: &str) {
+        for (p, &index) in indices.iter().enumerate() {
+            if index >= count {
+                self.add(
+                    format!("{pointer}/{p}"),
+                    format!("{what} {index} is out of range: there are {count}"),
+                );
+            }
+        }
+    }
+}
+
+impl Scene {
+    /// Every problem with the scene; empty when it is valid.
+    pub(super) fn problems(&self) -> Vec<FieldError> {
+        let mut p = Problems(Vec::new());
+        p.positive("/duration", self.duration);
+        if let Some(dt) = self.dt {
+            p.positive("/dt", dt);
+        }
+        p.finite("/gravity", &self.gravity);
+        p.non_negative("/drag", self.drag);
+        if p.finite("/verlet_damping", &[self.verlet_damping]) && !(0.0..1.0).contains(&self.verlet_damping) {
+            p.add("/verlet_damping", format!("must be in [0, 1), got {}", self.verlet_damping));
+        }
+        let tolerance = self.solver.tolerance;
+        if p.finite("/solver/tolerance", &[tolerance]) && !(tolerance > 0.0 && tolerance < 1.0) {
+            p.add("/solver/tolerance", format!("must be in (0, 1), got {tolerance}"));
+        }
+        if self.solver.max_iterations == 0 {
+            p.add("/solver/max_iterations", "must be at least 1");
+        }
+        if let Some(speed) = self.stop_at_rest {
+            p.positive("/stop_at_rest", speed);
+        }
+        if self.bodies.is_empty() {
+            p.add("/bodies", "a scene needs at least one body");
+        }
+        for (index, body) in self.bodies.iter().enumerate() {
+            body_problems(&mut p, &format!("/bodies/{index}"), body);
+        }
+        p.positive("/output/fps", self.output.fps);
+        for (i, field) in self.output.fields.iter().enumerate() {
+            if self.output.fields[..i].contains(field) {
+                p.add(format!("/output/fields/{i}"), "listed twice");
+            }
+        }
+        p.0
+    }
+}
+
+fn body_problems(p: &mut Problems, at: &str, body: &Body) {
+    let field = |name: &str| format!("{at}/{name}");
+    match body {
+        Body::Cloth(c) => {
+            p.all_positive(&field("size"), &c.size);
+            p.resolution(&field("resolution"), &c.resolution);
+            p.finite(&field("center"), &c.center);
+            p.positive(&field("mass"), c.mass);
+            p.finite(&field("velocity"), &c.velocity);
+            p.grid_springs(&field("springs"), &c.springs);
+            p.pins(&field("pin"), &c.pin, c.resolution);
+        }
+        Body::Chain(c) => {
+            p.finite(&field("start"), &c.start);
+            p.finite(&field("end"), &c.end);
+            if c.count < 2 {
+                p.add(field("count"), format!("must be at least 2, got {}", c.count));
+            }
+            p.positive(&field("mass"), c.mass);
+            p.finite(&field("velocity"), &c.velocity);
+            p.positive(&field("spring/k"), c.spring.k);
+            p.non_negative(&field("spring/damping"), c.spring.damping);
+            if let Some(rest) = c.spring.rest_length {
+                p.positive(&field("spring/rest_length"), rest);
+            }
+            p.indices(&field("pin"), &c.pin, c.count, "particle");
+        }
+        Body::Lattice(l) => {
+            p.all_positive(&field("size"), &l.size);
+            p.resolution(&field("resolution"), &l.resolution);
+            p.finite(&field("center"), &l.center);
+            p.positive(&field("mass"), l.mass);
+            p.finite(&field("velocity"), &l.velocity);
+            p.grid_springs(&field("springs"), &l.springs);
+            p.pins(&field("pin"), &l.pin, l.resolution);
+        }
+        Body::Mesh(m) => mesh_problems(p, at, m),
+    }
+}
+
+fn mesh_problems(p: &mut Problems, at: &str, m: &super::types::MeshSpec) {
+    let field = |name: &str| format!("{at}/{name}");
+    let vertex_count = m.vertices.len() / 3;
+    if m.vertices.len() % 3 != 0 || vertex_count < 3 {
+        p.add(
+            field("vertices"),
+            format!("must hold x, y, z for at least 3 vertices; got {} numbers", m.vertices.len()),
+        );
+    }
+    p.finite(&field("vertices"), &m.vertices);
+    if m.triangles.len() % 3 != 0 || m.triangles.is_empty() {
+        p.add(
+            field("triangles"),
+            format!("must hold three indices per triangle, at least one; got {}", m.triangles.len()),
+        );
+    }
+    p.indices(&field("triangles"), &m.triangles, vertex_count, "vertex");
+    p.positive(&field("mass"), m.mass);
+    p.finite(&field("velocity"), &m.velocity);
+    p.spring(&field("springs/structural"), &m.springs.structural);
+    p.spring(&field("springs/bending"), &m.springs.bending);
+    p.indices(&field("pin"), &m.pin, vertex_count, "vertex");
+    let well_formed = p.0.iter().all(|e| !e.pointer.starts_with(at));
+    if !well_formed {
+        return;
+    }
+    let (vertices, triangles) = (m.vertex_positions(), m.triangle_indices());
+    for (t, tri) in triangles.iter().enumerate() {
+        if tri[0] == tri[1] || tri[1] == tri[2] || tri[0] == tri[2] {
+            p.add(format!("{at}/triangles/{}", 3 * t), format!("triangle {t} repeats a vertex: {tri:?}"));
+        }
+    }
+    let areas = crate::solver::vertex_areas(&vertices, &triangles);
+    if let Some(v) = areas.iter().position(|&a| a <= 0.0 || !a.is_finite()) {
+        p.add(
+            field("vertices"),
+            format!("vertex {v} is on no triangle of positive area, so it would have no mass"),
+        );
+    }
+}

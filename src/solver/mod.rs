@@ -1,0 +1,34 @@
+//! The mass-spring solver: pure, synchronous and deterministic physics.
+//!
+//! It does no I/O and knows nothing of serde, HTTP or async; its inputs are plain Rust values.
+//! A [`Model`] (particles, springs, triangles, built by the body builders) and a [`Config`]
+//! compile into a [`Simulation`] in `f32` or `f64`, which holds only the stages the scene needs
+//! and steps without allocating. Two runs of the same inputs give bit-identical results.
+
+mod bodies;
+mod diagnostics;
+mod dynamics;
+mod integrators;
+mod model;
+mod normals;
+mod real;
+mod simulation;
+mod springs;
+mod stability;
+mod state;
+mod sym3;
+mod vec3;
+
+#[cfg(test)]
+mod tests;
+
+pub use bodies::{Chain, Cloth, Lattice, Mesh, Orientation, vertex_areas};
+pub use diagnostics::Energy;
+pub use dynamics::Dynamics;
+pub use integrators::{IntegratorKind, IntegratorSettings, LinearSolveStats};
+pub use model::{Model, Spring, SpringKind, SpringParams};
+pub use real::Real;
+pub use simulation::{Config, Simulation};
+pub use stability::{Divergence, DivergenceReason, stable_step};
+pub use state::State;
+pub use vec3::Vec3;

@@ -1,0 +1,122 @@
+//! The particle system a scene builds, in `f64`, before it is compiled into a simulation.
+//!
+//! A [`Model`] is plain data: particle positions, velocities, masses and pins, the spring list and
+//! the surface triangles. Body builders ([`bodies`](super::bodies)) append to it; a
+//! [`Simulation`](super::Simulation) converts it once to its own precision and layout.
+
+use std::ops::Range;
+
+use glam::DVec3;
+
+/// Which family a spring belongs to; each family has its own stiffness and damping.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum SpringKind {
+    /// Between grid neighbours (or along mesh edges and chains): resists stretch.
+    Structural,
+    /// Across grid-cell diagonals: resists shear.
+    Shear,
+    /// Between particles two apart (or across a shared mesh edge): resists folding.
+    Bending,
+}
+
+/// A damped spring between two particles.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Spring<T> {
+    /// First particle.
+    pub i: u32,
+    /// Second particle.
+    pub j: u32,
+    /// Length at which the spring exerts no force, in metres.
+    pub rest_length: T,
+    /// Stiffness `k`, in N/m.
+    pub stiffness: T,
+    /// Damping along the spring `c`, in N·s/m.
+    pub damping: T,
+    /// The family the spring belongs to.
+    pub kind: SpringKind,
+}
+
+/// A particle system: structure-of-arrays particle data, springs and surface triangles.
+#[derive(Clone, Debug, Default)]
+pub struct Model {
+    /// Initial positions, in metres.
+    pub positions: Vec<DVec3>,
+    /// Initial velocities, in m/s (zero for pinned particles).
+    pub velocities: Vec<DVec3>,
+    /// Masses, in kg (every one positive).
+    pub masses: Vec<f64>,
+    /// Whether each particle is pinned where it starts.
+    pub pinned: Vec<bool>,
+    /// Every spring.
+    pub springs: Vec<Spring<f64>>,
+    /// Surface triangles, as particle indices, counter-clockwise seen from the front.
+    pub triangles: Vec<[u32; 3]>,
+}
+
+impl Model {
+    /// The number of particles.
+    pub fn particle_count(&self) -> usize {
+        self.positions.len()
+    }
+
+    /// Appends particles with their masses and one shared initial velocity; returns their range.
+    pub(crate) fn add_particles(
+        &mut self,
+        positions: impl IntoIterator<Item = DVec3>,
+        mass_of: impl Fn(usize) -> f64,
+        velocity: DVec3,
+    ) -> Range<usize> {
+        let start = self.positions.len();
+        self.positions.extend(positions);
+        let end = self.positions.len();
+        self.masses.extend((0..end - start).map(mass_of));
+        self.velocities.extend(std::iter::repeat_n(velocity, end - start));
+        self.pinned.extend(std::iter::repeat_n(false, end - start));
+        start..end
+    }
+
+    /// Adds a spring whose rest length is the particles' current distance.
+    pub(crate) fn connect(&mut self, i: usize, j: usize, params: SpringParams, kind: SpringKind) {
+        let rest_length = self.positions[i].distance(self.positions[j]);
+        self.connect_with_rest(i, j, rest_length, params, kind);
+    }
+
+    /// Adds a spring with a given rest length.
+    pub(crate) fn connect_with_rest(
+        &mut self,
+        i: usize,
+        j: usize,
+        rest_length: f64,
+        params: SpringParams,
+        kind: SpringKind,
+    ) {
+        self.springs.push(Spring {
+            i: i as u32,
+            j: j as u32,
+            rest_length,
+            stiffness: params.stiffness,
+            damping: params.damping,
+            kind,
+        });
+    }
+
+    /// Pins a particle where it is: it keeps its position and has no velocity.
+    pub(crate) fn pin(&mut self, particle: usize) {
+        self.pinned[particle] = true;
+        self.velocities[particle] = DVec3::ZERO;
+    }
+
+    /// The sum of every particle's mass, in kg.
+    pub fn total_mass(&self) -> f64 {
+        self.masses.iter().sum()
+    }
+}
+
+/// Stiffness and damping shared by one family of springs.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SpringParams {
+    /// Stiffness `k`, in N/m.
+    pub stiffness: f64,
+    /// Damping along the spring, in N·s/m.
+    pub damping: f64,
+}

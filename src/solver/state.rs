@@ -1,0 +1,24 @@
+//! Where the particles are and how fast they move: the part of a simulation that a step changes.
+
+use super::{Real, Vec3};
+
+/// Positions and velocities, one entry per particle, as parallel arrays.
+#[derive(Clone, Debug, Default)]
+pub struct State<T> {
+    /// Positions, in metres.
+    pub positions: Vec<Vec3<T>>,
+    /// Velocities, in m/s.
+    pub velocities: Vec<Vec3<T>>,
+}
+
+impl<T: Real> State<T> {
+    /// The number of particles.
+    pub fn len(&self) -> usize {
+        self.positions.len()
+    }
+
+    /// Whether there are no particles.
+    pub fn is_empty(&self) -> bool {
+        self.positions.is_empty()
+    }
+}
