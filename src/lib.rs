@@ -8,10 +8,13 @@
 //! - [`run`]: runs one compiled scene to a [`run::Recording`]: steps it, records the frames and
 //!   fields asked for, watches for divergence.
 //! - [`output`]: encoders that turn a recording into the bytes a client asked for.
+//! - [`jobs`]: the queue, the worker threads that run scenes off the async runtime, limits,
+//!   cancellation, progress and the job store.
 //!
 //! Data flows one way: scene JSON → [`scene::Scene`] → [`scene::Compiled`] → [`run::execute`] →
 //! [`run::Recording`] → [`output`].
 
+pub mod jobs;
 pub mod output;
 pub mod run;
 pub mod scene;

@@ -19,6 +19,11 @@ pub fn write_json<W: Write>(recording: &Recording, writer: W) -> io::Result<()> 
     ResultView(recording).serialize(&mut serializer).map_err(io::Error::other)
 }
 
+/// The `stats` object of the JSON result on its own, for job listings and progress views.
+pub fn stats_json(stats: &Stats) -> serde_json::Value {
+    serde_json::to_value(StatsView(stats)).expect("statistics are plain JSON values")
+}
+
 struct ResultView<'a>(&'a Recording);
 
 impl Serialize for ResultView<'_> {

@@ -3,4 +3,4 @@
 
 mod json;
 
-pub use json::write_json;
+pub use json::{stats_json, write_json};
