@@ -10,12 +10,17 @@
 //! - [`output`]: encoders that turn a recording into the bytes a client asked for.
 //! - [`jobs`]: the queue, the worker threads that run scenes off the async runtime, limits,
 //!   cancellation, progress and the job store.
+//! - [`api`]: the HTTP API over [`jobs`]: routes, problem+json errors, limits, OpenAPI.
+//! - [`config`] and [`server`]: the settings of `drape serve` and the server's life.
 //!
 //! Data flows one way: scene JSON → [`scene::Scene`] → [`scene::Compiled`] → [`run::execute`] →
 //! [`run::Recording`] → [`output`].
 
+pub mod api;
+pub mod config;
 pub mod jobs;
 pub mod output;
 pub mod run;
 pub mod scene;
+pub mod server;
 pub mod solver;

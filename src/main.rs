@@ -1,4 +1,4 @@
-//! The `drape` command: run a scene from the shell.
+//! The `drape` command: serve the HTTP API, or run a scene from the shell.
 
 use std::io::Write;
 use std::path::PathBuf;
@@ -19,6 +19,8 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
+    /// Serves the HTTP API (see /openapi.json) until SIGINT or SIGTERM.
+    Serve(Box<drape::config::Config>),
     /// Runs a scene and prints its JSON result (or writes it to a file).
     Run {
         /// The scene, as a JSON file (`-` reads standard input).
@@ -31,7 +33,34 @@ enum Command {
 
 fn main() -> ExitCode {
     match Cli::parse().command {
+        Command::Serve(config) => serve(*config),
         Command::Run { scene, output } => run(&scene, output.as_deref()),
+    }
+}
+
+fn serve(config: drape::config::Config) -> ExitCode {
+    tracing_subscriber::fmt()
+        .with_env_filter(
+            tracing_subscriber::EnvFilter::try_from_default_env()
+                .unwrap_or_else(|_| "info,tower_http=info".into()),
+        )
+        .with_writer(std::io::stderr)
+        .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
+        .init();
+    let runtime = match tokio::runtime::Builder::new_multi_thread().enable_all().build() {
+        Ok(runtime) => runtime,
+        Err(e) => {
+            eprintln!("drape: cannot start the async runtime: {e}");
+            return ExitCode::FAILURE;
+        }
+    };
+    let addr = config.addr;
+    match runtime.block_on(drape::server::run(config, drape::server::shutdown_signal())) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("drape: cannot serve on {addr}: {e}");
+            ExitCode::FAILURE
+        }
     }
 }
 

@@ -1,0 +1,107 @@
+//! `GET /jobs/{id}/events`: server-sent events that follow a job to its end.
+//!
+//! The stream samples the job's progress (read lock-free from the run's `Control`) at most
+//! [`SAMPLES_PER_SECOND`] times a second and sends a `progress` event (`step`, `steps`, `t`,
+//! `fraction`) when it has moved, then one `end` event carrying the job as `GET /jobs/{id}` shows
+//! it, and closes. A status change wakes the stream at once, so the end is not delayed.
+
+use std::convert::Infallible;
+use std::time::Duration;
+
+use axum::extract::State;
+use axum::response::sse::{Event, KeepAlive, Sse};
+use futures_util::Stream;
+use futures_util::stream;
+use tokio::sync::watch;
+use tokio::time::{Instant, MissedTickBehavior, interval_at};
+
+use super::AppState;
+use super::extract::JobPath;
+use super::problem::AppError;
+use super::views::{job_view, progress};
+use crate::jobs::{JobId, JobStatus, Jobs};
+
+/// The most `progress` events a second.
+pub const SAMPLES_PER_SECOND: u32 = 4;
+
+/// Opens the event stream of a job.
+pub async fn events(
+    State(state): State<AppState>,
+    JobPath(id): JobPath,
+) -> Result<Sse<impl Stream<Item = Result<Event, Infallible>>>, AppError> {
+    if state.jobs.get(&id).await?.is_none() {
+        return Err(AppError::JobNotFound { id: id.to_string() });
+    }
+    let follow = Follow {
+        status: state.jobs.watch(&id),
+        jobs: state.jobs,
+        id,
+        last_step: None,
+        sample_due: true,
+        ended: false,
+    };
+    let period = Duration::from_secs(1) / SAMPLES_PER_SECOND;
+    let mut ticks = interval_at(Instant::now() + period, period);
+    ticks.set_missed_tick_behavior(MissedTickBehavior::Delay);
+    let stream = stream::unfold((follow, ticks), |(mut follow, mut ticks)| async move {
+        let event = follow.next(&mut ticks).await?;
+        Some((Ok(event), (follow, ticks)))
+    });
+    Ok(Sse::new(stream).keep_alive(KeepAlive::default()))
+}
+
+struct Follow {
+    jobs: Jobs,
+    id: JobId,
+    status: Option<watch::Receiver<JobStatus>>,
+    last_step: Option<u64>,
+    /// Whether a sample period has passed since the last `progress` event.
+    sample_due: bool,
+    ended: bool,
+}
+
+impl Follow {
+    /// The next event, or `None` once the end has been sent.
+    async fn next(&mut self, ticks: &mut tokio::time::Interval) -> Option<Event> {
+        loop {
+            if self.ended {
+                return None;
+            }
+            let job = match self.jobs.get(&self.id).await {
+                Ok(Some(job)) => job,
+                Ok(None) | Err(_) => {
+                    self.ended = true;
+                    return Some(
+                        Event::default().event("error").data(r#"{"detail":"the job can no longer be read"}"#),
+                    );
+                }
+            };
+            if job.status.is_final() {
+                self.ended = true;
+                return Some(Event::default().event("end").data(job_view(&job).to_string()));
+            }
+            if self.sample_due && self.last_step != Some(job.steps_done) {
+                self.last_step = Some(job.steps_done);
+                self.sample_due = false;
+                return Some(Event::default().event("progress").data(progress(&job).to_string()));
+            }
+            self.wait(ticks).await;
+        }
+    }
+
+    /// Waits for the next sample time or a status change, whichever comes first.
+    async fn wait(&mut self, ticks: &mut tokio::time::Interval) {
+        match &mut self.status {
+            Some(status) => {
+                tokio::select! {
+                    _ = ticks.tick() => self.sample_due = true,
+                    changed = status.changed() => if changed.is_err() { self.status = None },
+                }
+            }
+            None => {
+                ticks.tick().await;
+                self.sample_due = true;
+            }
+        }
+    }
+}

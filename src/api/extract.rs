@@ -1,0 +1,178 @@
+//! Extractors whose rejections are [`AppError`]s, so a bad request body, header or query gets
+//! the same problem body as every other error.
+
+use std::collections::HashMap;
+
+use axum::body::Bytes;
+use axum::extract::{FromRequest, FromRequestParts, Request};
+use axum::http::request::Parts;
+use axum::http::{StatusCode, header};
+use serde_json::Value;
+
+use super::problem::AppError;
+use crate::jobs::{JobId, fingerprint};
+use crate::scene::{FieldError, Scene};
+
+/// A scene from a JSON body, validated, with the fingerprint of the document.
+pub struct SceneBody {
+    /// The scene.
+    pub scene: Scene,
+    /// [`fingerprint`] of the document, for idempotency.
+    pub fingerprint: u64,
+}
+
+impl<S: Send + Sync> FromRequest<S> for SceneBody {
+    type Rejection = AppError;
+
+    async fn from_request(request: Request, state: &S) -> Result<Self, AppError> {
+        let content_type = request
+            .headers()
+            .get(header::CONTENT_TYPE)
+            .map(|v| String::from_utf8_lossy(v.as_bytes()).into_owned());
+        if !content_type.as_deref().is_some_and(is_json) {
+            return Err(AppError::UnsupportedMediaType { found: content_type });
+        }
+        let bytes = Bytes::from_request(request, state).await.map_err(|rejection| {
+            if rejection.status() == StatusCode::PAYLOAD_TOO_LARGE {
+                AppError::BodyTooLarge
+            } else {
+                AppError::BadRequest {
+                    detail: format!("the body could not be read: {rejection}"),
+                    errors: vec![],
+                }
+            }
+        })?;
+        let document: Value = serde_json::from_slice(&bytes).map_err(|e| AppError::MalformedJson {
+            line: e.line(),
+            column: e.column(),
+            message: e.to_string(),
+        })?;
+        let fingerprint = fingerprint(&document);
+        let scene = Scene::from_value(document)?;
+        Ok(Self { scene, fingerprint })
+    }
+}
+
+/// Whether a `Content-Type` declares JSON: `application/json` or a `+json` type, any parameters.
+fn is_json(content_type: &str) -> bool {
+    let essence = content_type.split(';').next().unwrap_or("").trim().to_ascii_lowercase();
+    essence == "application/json" || (essence.starts_with("application/") && essence.ends_with("+json"))
+}
+
+/// The `Idempotency-Key` header, if sent: 1 to 255 visible ASCII characters.
+pub struct IdempotencyKey(pub Option<String>);
+
+impl<S: Send + Sync> FromRequestParts<S> for IdempotencyKey {
+    type Rejection = AppError;
+
+    async fn from_request_parts(parts: &mut Parts, _: &S) -> Result<Self, AppError> {
+        let Some(value) = parts.headers.get("idempotency-key") else { return Ok(Self(None)) };
+        let key = value
+            .to_str()
+            .ok()
+            .filter(|k| (1..=255).contains(&k.len()) && k.bytes().all(|b| b.is_ascii_graphic()));
+        match key {
+            Some(key) => Ok(Self(Some(key.to_string()))),
+            None => Err(AppError::BadRequest {
+                detail: "Idempotency-Key must be 1 to 255 visible ASCII characters".into(),
+                errors: vec![FieldError::new(
+                    "/headers/idempotency-key",
+                    "1 to 255 visible ASCII characters",
+                )],
+            }),
+        }
+    }
+}
+
+/// A job id from the path; a malformed id is an unknown job.
+pub struct JobPath(pub JobId);
+
+impl<S: Send + Sync> FromRequestParts<S> for JobPath {
+    type Rejection = AppError;
+
+    async fn from_request_parts(parts: &mut Parts, state: &S) -> Result<Self, AppError> {
+        let axum::extract::Path(raw) = axum::extract::Path::<String>::from_request_parts(parts, state)
+            .await
+            .map_err(|e| AppError::Internal(format!("job route without an id: {e}")))?;
+        JobId::parse(&raw).map(Self).ok_or(AppError::JobNotFound { id: raw })
+    }
+}
+
+/// The query of `GET /jobs`: `offset` and `limit`.
+pub struct PageQuery {
+    /// Jobs to skip (default 0).
+    pub offset: u64,
+    /// Jobs to return, 1 to [`PageQuery::MAX_LIMIT`] (default 20).
+    pub limit: u64,
+}
+
+impl PageQuery {
+    /// The largest page.
+    pub const MAX_LIMIT: u64 = 100;
+}
+
+impl<S: Send + Sync> FromRequestParts<S> for PageQuery {
+    type Rejection = AppError;
+
+    async fn from_request_parts(parts: &mut Parts, state: &S) -> Result<Self, AppError> {
+        let axum::extract::Query(params) =
+            axum::extract::Query::<HashMap<String, String>>::from_request_parts(parts, state).await.map_err(
+                |e| AppError::BadRequest {
+                    detail: format!("the query string is malformed: {e}"),
+                    errors: vec![],
+                },
+            )?;
+        let mut errors = Vec::new();
+        let mut number =
+            |name: &str, default: u64, range: std::ops::RangeInclusive<u64>| match params.get(name) {
+                None => default,
+                Some(text) => match text.parse::<u64>() {
+                    Ok(n) if range.contains(&n) => n,
+                    _ => {
+                        errors.push(FieldError::new(
+                            format!("/{name}"),
+                            format!(
+                                "must be a whole number from {} to {}, not `{text}`",
+                                range.start(),
+                                range.end()
+                            ),
+                        ));
+                        default
+                    }
+                },
+            };
+        let offset = number("offset", 0, 0..=u64::from(u32::MAX));
+        let limit = number("limit", 20, 1..=Self::MAX_LIMIT);
+        for unknown in params.keys().filter(|k| !matches!(k.as_str(), "offset" | "limit")) {
+            errors.push(FieldError::new(
+                format!("/{unknown}"),
+                "unknown query parameter: expected `offset` or `limit`",
+            ));
+        }
+        if errors.is_empty() {
+            Ok(Self { offset, limit })
+        } else {
+            Err(AppError::BadRequest { detail: "invalid query parameters; see `errors`".into(), errors })
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::is_json;
+
+    #[test]
+    fn json_content_types() {
+        for yes in [
+            "application/json",
+            "application/json; charset=utf-8",
+            "Application/JSON",
+            "application/scene+json",
+        ] {
+            assert!(is_json(yes), "{yes}");
+        }
+        for no in ["text/plain", "application/x-www-form-urlencoded", "text/json", "", "application/jsonx"] {
+            assert!(!is_json(no), "{no}");
+        }
+    }
+}

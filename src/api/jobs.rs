@@ -1,0 +1,87 @@
+//! The `/jobs` endpoints: submit, list, look up, fetch the result of, and cancel jobs.
+
+use axum::Json;
+use axum::extract::State;
+use axum::http::{HeaderValue, StatusCode, header};
+use axum::response::{IntoResponse, Response};
+use serde_json::json;
+
+use super::AppState;
+use super::extract::{IdempotencyKey, JobPath, PageQuery, SceneBody};
+use super::problem::AppError;
+use super::views::job_view;
+use crate::jobs::{Cancelled, JobRecord, Page, StoredResult, Submission};
+
+/// `POST /jobs`: queues a scene; `202` with the job and its `Location`. A repeated
+/// `Idempotency-Key` with the same body answers with the same job.
+pub async fn submit(
+    State(state): State<AppState>,
+    IdempotencyKey(key): IdempotencyKey,
+    body: SceneBody,
+) -> Result<Response, AppError> {
+    let submitted = state
+        .jobs
+        .submit(Submission {
+            scene: body.scene,
+            fingerprint: body.fingerprint,
+            idempotency_key: key,
+            max_work: None,
+        })
+        .await?;
+    let job = if submitted.repeated {
+        state.jobs.get(&submitted.job.id).await?.unwrap_or(submitted.job)
+    } else {
+        submitted.job
+    };
+    let mut response = (StatusCode::ACCEPTED, Json(job_view(&job))).into_response();
+    let location = HeaderValue::from_str(&format!("/jobs/{}", job.id)).expect("job ids are URL-safe");
+    response.headers_mut().insert(header::LOCATION, location);
+    if submitted.repeated {
+        response.headers_mut().insert("idempotent-replayed", HeaderValue::from_static("true"));
+    }
+    Ok(response)
+}
+
+/// `GET /jobs`: recent jobs, newest first, `offset` and `limit` paged.
+pub async fn list(State(state): State<AppState>, page: PageQuery) -> Result<Response, AppError> {
+    let jobs = state.jobs.list(Page { offset: page.offset, limit: page.limit }).await?;
+    let next = (jobs.len() as u64 == page.limit)
+        .then(|| format!("/jobs?offset={}&limit={}", page.offset + page.limit, page.limit));
+    let views: Vec<_> = jobs.iter().map(job_view).collect();
+    Ok(Json(json!({"jobs": views, "offset": page.offset, "limit": page.limit, "next": next})).into_response())
+}
+
+/// `GET /jobs/{id}`: the job's status, progress and, once ended, its stats.
+pub async fn get(State(state): State<AppState>, JobPath(id): JobPath) -> Result<Response, AppError> {
+    let job = state.jobs.get(&id).await?.ok_or_else(|| AppError::JobNotFound { id: id.to_string() })?;
+    Ok(Json(job_view(&job)).into_response())
+}
+
+/// `GET /jobs/{id}/result`: the result of an ended job.
+pub async fn result(State(state): State<AppState>, JobPath(id): JobPath) -> Result<Response, AppError> {
+    let job = state.jobs.get(&id).await?.ok_or_else(|| AppError::JobNotFound { id: id.to_string() })?;
+    match state.jobs.result(&id).await? {
+        Some(result) if job.status.is_final() => Ok(result_response(&job, result)),
+        _ => Err(AppError::NoResult { id: job.id, status: job.status, message: job.message }),
+    }
+}
+
+/// A stored result as a response; the one place that turns a result into HTTP.
+pub fn result_response(job: &JobRecord, result: StoredResult) -> Response {
+    let mut response = ([(header::CONTENT_TYPE, result.media_type)], result.bytes).into_response();
+    let headers = response.headers_mut();
+    headers.insert("drape-job-id", HeaderValue::from_str(job.id.as_str()).expect("job ids are header-safe"));
+    headers.insert("drape-job-status", HeaderValue::from_static(job.status.name()));
+    response
+}
+
+/// `DELETE /jobs/{id}`: cancels a job. A queued job is dropped (`200`, status `cancelled`); a
+/// running one stops within one batch of steps (`202`); an ended one is a `409`.
+pub async fn cancel(State(state): State<AppState>, JobPath(id): JobPath) -> Result<Response, AppError> {
+    match state.jobs.cancel(&id).await? {
+        None => Err(AppError::JobNotFound { id: id.to_string() }),
+        Some(Cancelled::Dropped(job)) => Ok((StatusCode::OK, Json(job_view(&job))).into_response()),
+        Some(Cancelled::Stopping(job)) => Ok((StatusCode::ACCEPTED, Json(job_view(&job))).into_response()),
+        Some(Cancelled::AlreadyEnded(job)) => Err(AppError::AlreadyEnded { id: job.id, status: job.status }),
+    }
+}

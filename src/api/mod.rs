@@ -1,0 +1,129 @@
+//! The HTTP API: an axum [`Router`] over the job system.
+//!
+//! [`app`] builds the router from [`routes`], the one list of endpoints that both the router and
+//! the OpenAPI test read. Handlers talk to [`jobs`](crate::jobs), never to the solver. Every
+//! error is an [`AppError`] answered as `application/problem+json`; limits and overload are
+//! layers ([`layers`]) or checks before work starts.
+
+mod events;
+mod extract;
+mod jobs;
+mod layers;
+mod metrics;
+mod openapi;
+mod problem;
+mod simulate;
+mod views;
+
+use std::sync::Arc;
+use std::time::Duration;
+
+use axum::Router;
+use axum::handler::Handler;
+use axum::http::{Method, Uri};
+use axum::routing::{MethodFilter, MethodRouter, on};
+
+pub use metrics::HttpMetrics;
+pub use openapi::{OPENAPI_YAML, spec as openapi_spec};
+pub use problem::{AppError, PROBLEM_JSON};
+
+use crate::jobs::Jobs;
+
+/// Settings of the HTTP side.
+#[derive(Clone, Debug)]
+pub struct ApiConfig {
+    /// Largest request body, in bytes.
+    pub body_limit: usize,
+    /// Largest run `POST /simulate` takes, in particle-steps; larger runs go to `POST /jobs`.
+    pub simulate_work_budget: u64,
+    /// Longest time to the response head of any request.
+    pub request_timeout: Duration,
+    /// Requests handled at once; more are refused with `503`.
+    pub max_concurrent_requests: usize,
+    /// Origins allowed by CORS; `*` allows any.
+    pub cors_origins: Vec<String>,
+}
+
+impl Default for ApiConfig {
+    fn default() -> Self {
+        Self {
+            body_limit: 4 << 20,
+            simulate_work_budget: 50_000_000,
+            request_timeout: Duration::from_secs(330),
+            max_concurrent_requests: 1024,
+            cors_origins: vec!["*".into()],
+        }
+    }
+}
+
+/// What every handler shares.
+#[derive(Clone)]
+pub struct AppState {
+    /// The job system.
+    pub jobs: Jobs,
+    /// HTTP settings.
+    pub config: Arc<ApiConfig>,
+    /// Request counts and latencies.
+    pub http_metrics: Arc<HttpMetrics>,
+}
+
+impl AppState {
+    /// State over a running job system.
+    pub fn new(jobs: Jobs, config: ApiConfig) -> Self {
+        Self { jobs, config: Arc::new(config), http_metrics: Arc::default() }
+    }
+}
+
+/// One endpoint: method, path (axum syntax, as in the OpenAPI file) and handler.
+pub struct Route {
+    /// The method.
+    pub method: Method,
+    /// The path, e.g. `/jobs/{id}`.
+    pub path: &'static str,
+    handler: MethodRouter<AppState>,
+}
+
+fn route<H, T>(method: Method, path: &'static str, handler: H) -> Route
+where
+    H: Handler<T, AppState>,
+    T: 'static,
+{
+    let filter = MethodFilter::try_from(method.clone()).expect("a standard method");
+    Route { method, path, handler: on(filter, handler) }
+}
+
+/// Every endpoint of the API.
+pub fn routes() -> Vec<Route> {
+    vec![
+        route(Method::POST, "/simulate", simulate::simulate),
+        route(Method::POST, "/jobs", jobs::submit),
+        route(Method::GET, "/jobs", jobs::list),
+        route(Method::GET, "/jobs/{id}", jobs::get),
+        route(Method::DELETE, "/jobs/{id}", jobs::cancel),
+        route(Method::GET, "/jobs/{id}/result", jobs::result),
+        route(Method::GET, "/jobs/{id}/events", events::events),
+        route(Method::GET, "/healthz", healthz),
+        route(Method::GET, "/metrics", metrics::metrics),
+        route(Method::GET, "/openapi.json", openapi::openapi),
+    ]
+}
+
+/// The application: every route, with its layers.
+pub fn app(state: AppState) -> Router {
+    let router = routes().into_iter().fold(Router::new(), |router, r| router.route(r.path, r.handler));
+    let router = router.fallback(not_found).method_not_allowed_fallback(method_not_allowed);
+    layers::wrap(router, &state).with_state(state)
+}
+
+/// `GET /healthz`: the server is up and answering.
+async fn healthz() -> axum::Json<serde_json::Value> {
+    axum::Json(serde_json::json!({"status": "ok"}))
+}
+
+async fn not_found(uri: Uri) -> AppError {
+    AppError::NoRoute { path: uri.path().to_string() }
+}
+
+async fn method_not_allowed(method: Method, uri: Uri) -> AppError {
+    AppError::MethodNotAllowed { method: method.to_string(), path: uri.path().to_string() }
+}

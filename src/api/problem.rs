@@ -1,0 +1,334 @@
+//! Every error the API answers with, as an RFC 9457 `application/problem+json` body.
+//!
+//! Handlers, extractors and layers all fail with [`AppError`], so a malformed body, an unknown
+//! route and a full queue look alike to a client: `type`, `title`, `status`, `detail`, and for
+//! problems with the request's content, `errors: [{pointer, detail}]` with a JSON Pointer to
+//! each field at fault. A 500 logs its cause and tells the client nothing more.
+
+use axum::http::{HeaderValue, StatusCode, header};
+use axum::response::{IntoResponse, Response};
+use serde_json::json;
+
+use crate::jobs::{JobId, JobStatus, StoreError, SubmitError};
+use crate::scene::{FieldError, SceneError};
+
+/// The media type of a problem body.
+pub const PROBLEM_JSON: &str = "application/problem+json";
+
+/// An error answered to a client.
+#[derive(Debug)]
+pub enum AppError {
+    /// 400: the body is not JSON.
+    MalformedJson {
+        /// 1-based line.
+        line: usize,
+        /// 1-based column.
+        column: usize,
+        /// What the parser expected.
+        message: String,
+    },
+    /// 400: a query parameter or header is invalid; the pointer names it (`/limit`).
+    BadRequest {
+        /// What is wrong.
+        detail: String,
+        /// The parameters at fault.
+        errors: Vec<FieldError>,
+    },
+    /// 404: no route has this path.
+    NoRoute {
+        /// The path asked for.
+        path: String,
+    },
+    /// 404: no job has this id.
+    JobNotFound {
+        /// The id asked for.
+        id: String,
+    },
+    /// 405: the route exists but not with this method.
+    MethodNotAllowed {
+        /// The method used.
+        method: String,
+        /// The path asked for.
+        path: String,
+    },
+    /// 408: the request took longer than the server's request timeout.
+    Timeout,
+    /// 409: the job has no result to serve (yet, or ever).
+    NoResult {
+        /// The job.
+        id: JobId,
+        /// Its status.
+        status: JobStatus,
+        /// Why it failed or was cancelled.
+        message: Option<String>,
+    },
+    /// 409: the job has already ended and cannot be cancelled.
+    AlreadyEnded {
+        /// The job.
+        id: JobId,
+        /// How it ended.
+        status: JobStatus,
+    },
+    /// 409: the job run by `POST /simulate` was cancelled before it finished.
+    JobCancelled {
+        /// The job.
+        id: JobId,
+        /// Why.
+        message: Option<String>,
+    },
+    /// 413: the request body is larger than the server accepts.
+    BodyTooLarge,
+    /// 413: the run is too large for `POST /simulate`; `POST /jobs` takes it.
+    OverBudget {
+        /// Particle-steps of the run.
+        work: u64,
+        /// The budget of `POST /simulate`.
+        budget: u64,
+    },
+    /// 415: the body is not declared as JSON.
+    UnsupportedMediaType {
+        /// The `Content-Type` sent, if any.
+        found: Option<String>,
+    },
+    /// 422: the document is JSON but not a valid scene.
+    InvalidScene(Vec<FieldError>),
+    /// 422: the scene is valid but larger than this server's limits.
+    OverLimit(Vec<FieldError>),
+    /// 422: the `Idempotency-Key` was already used with a different body.
+    KeyReused {
+        /// The key.
+        key: String,
+        /// The job that holds it.
+        job: JobId,
+    },
+    /// 429: the job queue is full; try again after `Retry-After` seconds.
+    QueueFull {
+        /// Seconds to wait.
+        retry_after: u64,
+    },
+    /// 503: the server is shutting down.
+    ShuttingDown,
+    /// 503: the server is handling as many requests as it can.
+    Overloaded,
+    /// 500: the job failed (a panic, the wall-time limit); the message says which.
+    JobFailed {
+        /// The job.
+        id: JobId,
+        /// What happened.
+        message: String,
+    },
+    /// 500: something broke on the server; the cause is logged, not sent.
+    Internal(String),
+}
+
+impl AppError {
+    /// The HTTP status of the error.
+    pub fn status(&self) -> StatusCode {
+        match self {
+            Self::MalformedJson { .. } | Self::BadRequest { .. } => StatusCode::BAD_REQUEST,
+            Self::NoRoute { .. } | Self::JobNotFound { .. } => StatusCode::NOT_FOUND,
+            Self::MethodNotAllowed { .. } => StatusCode::METHOD_NOT_ALLOWED,
+            Self::Timeout => StatusCode::REQUEST_TIMEOUT,
+            Self::NoResult { .. } | Self::AlreadyEnded { .. } | Self::JobCancelled { .. } => {
+                StatusCode::CONFLICT
+            }
+            Self::BodyTooLarge | Self::OverBudget { .. } => StatusCode::PAYLOAD_TOO_LARGE,
+            Self::UnsupportedMediaType { .. } => StatusCode::UNSUPPORTED_MEDIA_TYPE,
+            Self::InvalidScene(_) | Self::OverLimit(_) | Self::KeyReused { .. } => {
+                StatusCode::UNPROCESSABLE_ENTITY
+            }
+            Self::QueueFull { .. } => StatusCode::TOO_MANY_REQUESTS,
+            Self::ShuttingDown | Self::Overloaded => StatusCode::SERVICE_UNAVAILABLE,
+            Self::JobFailed { .. } | Self::Internal(_) => StatusCode::INTERNAL_SERVER_ERROR,
+        }
+    }
+
+    /// The `type` slug, `title` and `detail` of the problem.
+    fn describe(&self) -> (&'static str, &'static str, String) {
+        match self {
+            Self::MalformedJson { line, column, message } => (
+                "malformed-json",
+                "The body is not valid JSON",
+                format!("line {line}, column {column}: {message}"),
+            ),
+            Self::BadRequest { detail, .. } => ("bad-request", "The request is invalid", detail.clone()),
+            Self::NoRoute { path } => {
+                ("not-found", "No such resource", format!("nothing is served at {path}"))
+            }
+            Self::JobNotFound { id } => {
+                ("job-not-found", "No such job", format!("there is no job with id `{id}`"))
+            }
+            Self::MethodNotAllowed { method, path } => (
+                "method-not-allowed",
+                "Method not allowed",
+                format!("{path} does not accept {method}; see /openapi.json for its methods"),
+            ),
+            Self::Timeout => {
+                ("timeout", "Request timed out", "the request took longer than the server allows".into())
+            }
+            Self::NoResult { id, status, message } => (
+                "no-result",
+                "The job has no result",
+                match (status.is_final(), message) {
+                    (false, _) => format!(
+                        "job {id} is {}; follow /jobs/{id}/events or poll /jobs/{id} until it ends",
+                        status.name()
+                    ),
+                    (true, Some(m)) => format!("job {id} ended {} without a result: {m}", status.name()),
+                    (true, None) => format!("job {id} ended {} without a result", status.name()),
+                },
+            ),
+            Self::AlreadyEnded { id, status } => (
+                "already-ended",
+                "The job has already ended",
+                format!("job {id} already ended {}", status.name()),
+            ),
+            Self::JobCancelled { id, message } => (
+                "job-cancelled",
+                "The job was cancelled",
+                format!("job {id} was cancelled: {}", message.as_deref().unwrap_or("no reason given")),
+            ),
+            Self::BodyTooLarge => (
+                "body-too-large",
+                "The body is too large",
+                "the request body exceeds the server's limit (--body-limit)".into(),
+            ),
+            Self::OverBudget { work, budget } => (
+                "over-simulate-budget",
+                "Too large to run synchronously",
+                format!(
+                    "the run needs {work} particle-steps (particles × steps), over the {budget} that POST /simulate \
+                     runs while you wait; submit it to POST /jobs instead and fetch /jobs/{{id}}/result"
+                ),
+            ),
+            Self::UnsupportedMediaType { found } => (
+                "unsupported-media-type",
+                "The body must be JSON",
+                match found {
+                    Some(t) => format!("Content-Type is `{t}`; send the scene as `application/json`"),
+                    None => "no Content-Type header; send the scene as `application/json`".into(),
+                },
+            ),
+            Self::InvalidScene(errors) => (
+                "invalid-scene",
+                "The scene is invalid",
+                format!("{} problem(s); see `errors`", errors.len()),
+            ),
+            Self::OverLimit(errors) => (
+                "over-limit",
+                "The scene exceeds this server's limits",
+                errors.iter().map(|e| e.detail.as_str()).collect::<Vec<_>>().join("; "),
+            ),
+            Self::KeyReused { key, job } => (
+                "idempotency-key-reused",
+                "Idempotency-Key reused with a different body",
+                format!(
+                    "the Idempotency-Key `{key}` was first used for job {job} with a different scene; use a new key"
+                ),
+            ),
+            Self::QueueFull { retry_after } => (
+                "queue-full",
+                "The job queue is full",
+                format!("every place in the queue is taken; retry in {retry_after} s"),
+            ),
+            Self::ShuttingDown => (
+                "shutting-down",
+                "The server is shutting down",
+                "the server takes no new jobs while it stops".into(),
+            ),
+            Self::Overloaded => {
+                ("overloaded", "The server is overloaded", "too many requests at once; retry shortly".into())
+            }
+            Self::JobFailed { id, message } => {
+                ("job-failed", "The job failed", format!("job {id} failed: {message}"))
+            }
+            Self::Internal(_) => {
+                ("internal", "Internal server error", "the server failed; the cause is logged".into())
+            }
+        }
+    }
+
+    fn errors(&self) -> Option<&[FieldError]> {
+        match self {
+            Self::InvalidScene(errors) | Self::OverLimit(errors) | Self::BadRequest { errors, .. } => {
+                Some(errors)
+            }
+            _ => None,
+        }
+    }
+
+    /// A problem for a bare status from a layer that answered without a body.
+    pub fn for_status(status: StatusCode, method: &str, path: &str) -> Self {
+        match status {
+            StatusCode::NOT_FOUND => Self::NoRoute { path: path.into() },
+            StatusCode::METHOD_NOT_ALLOWED => {
+                Self::MethodNotAllowed { method: method.into(), path: path.into() }
+            }
+            StatusCode::PAYLOAD_TOO_LARGE => Self::BodyTooLarge,
+            StatusCode::REQUEST_TIMEOUT => Self::Timeout,
+            StatusCode::SERVICE_UNAVAILABLE => Self::Overloaded,
+            StatusCode::UNSUPPORTED_MEDIA_TYPE => Self::UnsupportedMediaType { found: None },
+            s if s.is_server_error() => Self::Internal(format!("a layer answered {s}")),
+            s => Self::BadRequest {
+                detail: s.canonical_reason().unwrap_or("bad request").into(),
+                errors: vec![],
+            },
+        }
+    }
+}
+
+impl IntoResponse for AppError {
+    fn into_response(self) -> Response {
+        let status = self.status();
+        if let Self::Internal(cause) = &self {
+            tracing::error!(%cause, "internal error");
+        }
+        let (slug, title, detail) = self.describe();
+        let mut body = json!({
+            "type": format!("/problems/{slug}"),
+            "title": title,
+            "status": status.as_u16(),
+            "detail": detail,
+        });
+        if let Some(errors) = self.errors() {
+            body["errors"] =
+                errors.iter().map(|e| json!({"pointer": e.pointer, "detail": e.detail})).collect();
+        }
+        let mut response = (status, [(header::CONTENT_TYPE, PROBLEM_JSON)], body.to_string()).into_response();
+        if let Self::QueueFull { retry_after } = self {
+            response.headers_mut().insert(header::RETRY_AFTER, HeaderValue::from(retry_after));
+        }
+        response
+    }
+}
+
+impl From<SceneError> for AppError {
+    fn from(e: SceneError) -> Self {
+        match e {
+            SceneError::Syntax { line, column, message } => Self::MalformedJson { line, column, message },
+            SceneError::Invalid(errors) => Self::InvalidScene(errors),
+        }
+    }
+}
+
+impl From<StoreError> for AppError {
+    fn from(e: StoreError) -> Self {
+        match e {
+            StoreError::NotFound(id) => Self::JobNotFound { id: id.to_string() },
+            StoreError::Backend(cause) => Self::Internal(cause),
+        }
+    }
+}
+
+impl From<SubmitError> for AppError {
+    fn from(e: SubmitError) -> Self {
+        match e {
+            SubmitError::OverLimit(errors) => Self::OverLimit(errors),
+            SubmitError::OverBudget { work, budget } => Self::OverBudget { work, budget },
+            SubmitError::KeyReused { key, job } => Self::KeyReused { key, job },
+            SubmitError::QueueFull => Self::QueueFull { retry_after: 1 },
+            SubmitError::ShuttingDown => Self::ShuttingDown,
+            SubmitError::Store(e) => e.into(),
+        }
+    }
+}

@@ -1,0 +1,71 @@
+//! `POST /simulate`: runs a small scene through the job queue and answers with its result.
+//!
+//! The job is an ordinary job (it shows in `GET /jobs`); the handler waits for it. Runs over the
+//! work budget (particles × steps) are refused with `413` and a pointer to `POST /jobs`. If the
+//! client goes away or the request times out, the job is cancelled.
+
+use axum::extract::State;
+use axum::http::{HeaderValue, header};
+use axum::response::Response;
+
+use super::AppState;
+use super::extract::SceneBody;
+use super::jobs::result_response;
+use super::problem::AppError;
+use crate::jobs::{JobId, JobStatus, Jobs, Submission};
+
+/// Runs the scene and returns its result; a diverged run is a `200` with `stats.status` `diverged`.
+pub async fn simulate(State(state): State<AppState>, body: SceneBody) -> Result<Response, AppError> {
+    let submission = Submission {
+        scene: body.scene,
+        fingerprint: body.fingerprint,
+        idempotency_key: None,
+        max_work: Some(state.config.simulate_work_budget),
+    };
+    let id = state.jobs.submit(submission).await?.job.id;
+    let guard = CancelOnDrop { jobs: state.jobs.clone(), id: Some(id.clone()) };
+    let job = state.jobs.wait(&id).await?.ok_or_else(|| AppError::Internal(format!("job {id} vanished")))?;
+    guard.disarm();
+    match job.status {
+        JobStatus::Succeeded | JobStatus::Diverged => {
+            let result = state
+                .jobs
+                .result(&id)
+                .await?
+                .ok_or_else(|| AppError::Internal(format!("job {id} has no result")))?;
+            let mut response = result_response(&job, result);
+            let location = HeaderValue::from_str(&format!("/jobs/{id}")).expect("job ids are URL-safe");
+            response.headers_mut().insert(header::CONTENT_LOCATION, location);
+            Ok(response)
+        }
+        JobStatus::Cancelled => Err(AppError::JobCancelled { id, message: job.message }),
+        JobStatus::Failed | JobStatus::Queued | JobStatus::Running => Err(AppError::JobFailed {
+            id,
+            message: job.message.unwrap_or_else(|| format!("ended {}", job.status.name())),
+        }),
+    }
+}
+
+/// Cancels the job if the request is dropped before it ends.
+struct CancelOnDrop {
+    jobs: Jobs,
+    id: Option<JobId>,
+}
+
+impl CancelOnDrop {
+    fn disarm(mut self) {
+        self.id = None;
+    }
+}
+
+impl Drop for CancelOnDrop {
+    fn drop(&mut self) {
+        if let Some(id) = self.id.take() {
+            let jobs = self.jobs.clone();
+            tokio::spawn(async move {
+                tracing::info!(job = %id, "the client left; cancelling its /simulate job");
+                let _ = jobs.cancel(&id).await;
+            });
+        }
+    }
+}

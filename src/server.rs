@@ -1,0 +1,80 @@
+//! Running the HTTP service: bind, serve, and shut down gracefully.
+//!
+//! On the shutdown signal the server stops accepting connections and the job system stops
+//! taking jobs: queued jobs are cancelled, running ones get the grace period to finish and are
+//! then cancelled (they stop within one batch of steps). Open requests, such as a `/simulate`
+//! waiting for its job or an event stream, end when their jobs do.
+
+use std::future::Future;
+use std::sync::Arc;
+use std::time::Duration;
+
+use tokio::net::TcpListener;
+
+use crate::api::{AppState, app};
+use crate::config::Config;
+use crate::jobs::{Jobs, MemoryStore};
+
+/// Serves until `shutdown` completes, then shuts down within the configured grace period.
+pub async fn run(config: Config, shutdown: impl Future<Output = ()> + Send + 'static) -> std::io::Result<()> {
+    let listener = TcpListener::bind(config.addr).await?;
+    let jobs = Jobs::start(Arc::new(MemoryStore::new()), config.jobs());
+    // The first line on standard output is the address, for scripts and tests that pick port 0.
+    println!("drape listening on http://{}", listener.local_addr()?);
+    tracing::info!(addr = %listener.local_addr()?, workers = jobs.config().workers, "serving");
+    serve(listener, AppState::new(jobs, config.api()), shutdown, config.shutdown_grace).await
+}
+
+/// Serves `state` on `listener` until `shutdown`, then stops the jobs within `grace`.
+pub async fn serve(
+    listener: TcpListener,
+    state: AppState,
+    shutdown: impl Future<Output = ()> + Send + 'static,
+    grace: Duration,
+) -> std::io::Result<()> {
+    let jobs = state.jobs.clone();
+    let (stopping_tx, stopping_rx) = tokio::sync::oneshot::channel::<()>();
+    let signal = async move {
+        shutdown.await;
+        tracing::info!("shutting down: no new connections or jobs");
+        let _ = stopping_tx.send(());
+    };
+    let jobs_stopped = tokio::spawn({
+        let jobs = jobs.clone();
+        async move {
+            if stopping_rx.await.is_ok() {
+                jobs.shutdown(grace).await;
+            }
+        }
+    });
+    axum::serve(listener, app(state)).with_graceful_shutdown(signal).await?;
+    if jobs_stopped.await.is_err() {
+        tracing::error!("the job system did not stop cleanly");
+    }
+    tracing::info!("stopped");
+    Ok(())
+}
+
+/// Completes on SIGINT (Ctrl-C) or SIGTERM.
+pub async fn shutdown_signal() {
+    let interrupt = async {
+        if tokio::signal::ctrl_c().await.is_err() {
+            std::future::pending::<()>().await;
+        }
+    };
+    #[cfg(unix)]
+    let terminate = async {
+        match tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate()) {
+            Ok(mut signal) => {
+                signal.recv().await;
+            }
+            Err(_) => std::future::pending::<()>().await,
+        }
+    };
+    #[cfg(not(unix))]
+    let terminate = std::future::pending::<()>();
+    tokio::select! {
+        () = interrupt => {}
+        () = terminate => {}
+    }
+}
