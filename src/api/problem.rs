@@ -209,11 +209,7 @@ impl AppError {
                     None => "no Content-Type header; send the scene as `application/json`".into(),
                 },
             ),
-            Self::InvalidScene(errors) => (
-                "invalid-scene",
-                "The scene is invalid",
-                format!("{} problem(s); see `errors`", errors.len()),
-            ),
+            Self::InvalidScene(errors) => ("invalid-scene", "The scene is invalid", summary(errors)),
             Self::OverLimit(errors) => (
                 "over-limit",
                 "The scene exceeds this server's limits",
@@ -284,6 +280,7 @@ impl IntoResponse for AppError {
             tracing::error!(%cause, "internal error");
         }
         let (slug, title, detail) = self.describe();
+        let detail = detail.as_str();
         let mut body = json!({
             "type": format!("/problems/{slug}"),
             "title": title,
@@ -293,6 +290,9 @@ impl IntoResponse for AppError {
         if let Some(errors) = self.errors() {
             body["errors"] =
                 errors.iter().map(|e| json!({"pointer": e.pointer, "detail": e.detail})).collect();
+        } else if let Self::MalformedJson { .. } = self {
+            // The whole document is at fault.
+            body["errors"] = json!([{"pointer": "", "detail": detail}]);
         }
         let mut response = (status, [(header::CONTENT_TYPE, PROBLEM_JSON)], body.to_string()).into_response();
         if let Self::QueueFull { retry_after } = self {
@@ -331,4 +331,14 @@ impl From<SubmitError> for AppError {
             SubmitError::Store(e) => e.into(),
         }
     }
+}
+
+/// The first few field problems in one line.
+fn summary(errors: &[FieldError]) -> String {
+    const SHOWN: usize = 3;
+    let mut text = errors.iter().take(SHOWN).map(ToString::to_string).collect::<Vec<_>>().join("; ");
+    if errors.len() > SHOWN {
+        text.push_str(&format!("; and {} more (see `errors`)", errors.len() - SHOWN));
+    }
+    text
 }

@@ -1,0 +1,312 @@
+//! Every endpoint through `app().oneshot(...)`, without a socket.
+
+mod common;
+
+use std::sync::Arc;
+
+use axum::body::Body;
+use axum::http::Request;
+use common::*;
+use drape::api::ApiConfig;
+use drape::jobs::JobsConfig;
+use serde_json::Value;
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn simulate_returns_the_same_result_as_a_direct_run() {
+    let (_, app) = test_app(jobs_config(), ApiConfig::default());
+    let answer = post_json(&app, "/simulate", TINY).await;
+    assert_eq!(answer.status, 200, "{}", answer.text());
+    assert_eq!(answer.header("content-type"), Some("application/json"));
+    let id = answer.header("drape-job-id").unwrap().to_string();
+    assert_eq!(answer.header("content-location"), Some(format!("/jobs/{id}").as_str()));
+
+    let scene = drape::scene::Scene::from_json(TINY.as_bytes()).unwrap();
+    let direct = drape::run::execute(&scene.compile(), &drape::run::Control::new());
+    let mut expected = Vec::new();
+    drape::output::write_json(&direct, &mut expected).unwrap();
+    let (mut got, mut want): (Value, Value) = (answer.json(), serde_json::from_slice(&expected).unwrap());
+    // Everything but the measured wall time is identical: runs are deterministic.
+    for v in [&mut got, &mut want] {
+        v["stats"]["wall_time_s"] = Value::Null;
+    }
+    assert_eq!(got, want);
+    assert_eq!(got["final"]["positions"].as_array().unwrap().len(), 9);
+
+    let job = get(&app, &format!("/jobs/{id}")).await.json();
+    assert_eq!(job["status"], "succeeded");
+    assert_eq!(job["progress"]["step"], 10);
+    assert_eq!(job["progress"]["fraction"], 1.0);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_diverged_run_is_a_successful_answer_about_the_scene() {
+    let (_, app) = test_app(jobs_config(), ApiConfig::default());
+    // Explicit Euler at 100 times the stable step of a stiff, moving chain blows up.
+    let scene = r#"{"duration": 2, "dt": 0.05, "integrator": "explicit_euler", "gravity": [0, 0, 0],
+                    "bodies": [{"type": "chain", "count": 4, "spring": {"k": 100000},
+                                "velocity": [0, 1, 0], "pin": [0]}],
+                    "output": {"frames": "none"}}"#;
+    let answer = post_json(&app, "/simulate", scene).await;
+    assert_eq!(answer.status, 200, "{}", answer.text());
+    assert_eq!(answer.header("drape-job-status"), Some("diverged"));
+    let result = answer.json();
+    assert_eq!(result["stats"]["status"], "diverged");
+    assert!(result["stats"]["diverged"]["step"].as_u64().is_some());
+    let id = answer.header("drape-job-id").unwrap();
+    let job = get(&app, &format!("/jobs/{id}")).await.json();
+    assert_eq!(job["status"], "diverged");
+    assert_eq!(job["message"], result["stats"]["diverged"]["reason"]);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn simulate_refuses_runs_over_its_budget_and_points_to_jobs() {
+    let api = ApiConfig { simulate_work_budget: 29, ..ApiConfig::default() };
+    let (_, app) = test_app(jobs_config(), api);
+    // TINY is 3 particles × 10 steps = 30 particle-steps.
+    let answer = post_json(&app, "/simulate", TINY).await;
+    assert_eq!(answer.status, 413);
+    let problem = answer.problem();
+    assert_eq!(problem["type"], "/problems/over-simulate-budget");
+    let detail = problem["detail"].as_str().unwrap();
+    assert!(detail.contains("30 particle-steps") && detail.contains("POST /jobs"), "{detail}");
+    // The same scene is welcome as a job.
+    assert_eq!(post_json(&app, "/jobs", TINY).await.status, 202);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn jobs_are_queued_listed_looked_up_and_their_results_served() {
+    let (_, app) = test_app(jobs_config(), ApiConfig::default());
+    let answer = post_json(&app, "/jobs", TINY).await;
+    assert_eq!(answer.status, 202);
+    let job = answer.json();
+    let id = job["id"].as_str().unwrap().to_string();
+    assert_eq!(answer.header("location"), Some(format!("/jobs/{id}").as_str()));
+    assert_eq!(job["links"]["result"], format!("/jobs/{id}/result"));
+    assert_eq!((job["particles"].as_u64(), job["springs"].as_u64()), (Some(3), Some(2)));
+    assert_eq!(job["progress"]["steps"], 10);
+
+    let ended = poll_until(&app, &id, is_final).await;
+    assert_eq!(ended["status"], "succeeded");
+    assert_eq!(ended["stats"]["steps"], 10);
+    assert!(ended["finished_at"].as_str().unwrap().ends_with('Z'));
+
+    let result = get(&app, &format!("/jobs/{id}/result")).await;
+    assert_eq!(result.status, 200);
+    assert_eq!(result.json()["stats"], ended["stats"]);
+
+    let second = post_json(&app, "/jobs", TINY).await.json();
+    poll_until(&app, second["id"].as_str().unwrap(), is_final).await;
+    let list = get(&app, "/jobs?limit=1").await.json();
+    assert_eq!(list["jobs"].as_array().unwrap().len(), 1);
+    assert_eq!(list["jobs"][0]["id"], second["id"], "newest first");
+    assert_eq!(list["next"], "/jobs?offset=1&limit=1");
+    let page2 = get(&app, "/jobs?offset=1&limit=1").await.json();
+    assert_eq!(page2["jobs"][0]["id"], id);
+    let all = get(&app, "/jobs").await.json();
+    assert_eq!(all["jobs"].as_array().unwrap().len(), 2);
+    assert_eq!(all["next"], Value::Null);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn idempotency_keys_return_the_same_job_or_refuse_a_different_body() {
+    let (_, app) = test_app(jobs_config(), ApiConfig::default());
+    let keyed = |body: &str| {
+        Request::post("/jobs")
+            .header("content-type", "application/json")
+            .header("idempotency-key", "order-42")
+            .body(Body::from(body.to_string()))
+            .unwrap()
+    };
+    let first = send(&app, keyed(TINY)).await;
+    assert_eq!(first.status, 202);
+    // The same scene with other spacing is the same body.
+    let again = send(&app, keyed(&TINY.replace(' ', ""))).await;
+    assert_eq!(again.status, 202);
+    assert_eq!(again.json()["id"], first.json()["id"]);
+    assert_eq!(again.header("idempotent-replayed"), Some("true"));
+    assert_eq!(get(&app, "/jobs").await.json()["jobs"].as_array().unwrap().len(), 1);
+
+    let other = send(&app, keyed(&TINY.replace("0.1", "0.2"))).await;
+    assert_eq!(other.status, 422);
+    let problem = other.problem();
+    assert_eq!(problem["type"], "/problems/idempotency-key-reused");
+    assert!(problem["detail"].as_str().unwrap().contains("order-42"));
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn cancelling_drops_a_queued_job_stops_a_running_one_and_refuses_an_ended_one() {
+    let (_, app) = test_app(jobs_config(), ApiConfig::default());
+    let running = post_json(&app, "/jobs", LONG).await.json()["id"].as_str().unwrap().to_string();
+    poll_until(&app, &running, |j| j["status"] == "running").await;
+    let queued = post_json(&app, "/jobs", TINY).await.json()["id"].as_str().unwrap().to_string();
+
+    let dropped = delete(&app, &format!("/jobs/{queued}")).await;
+    assert_eq!(dropped.status, 200);
+    assert_eq!(dropped.json()["status"], "cancelled");
+    let no_result = get(&app, &format!("/jobs/{queued}/result")).await;
+    assert_eq!(no_result.status, 409);
+    assert_eq!(no_result.problem()["type"], "/problems/no-result");
+
+    let running_result = get(&app, &format!("/jobs/{running}/result")).await;
+    assert_eq!(running_result.status, 409, "no result while running");
+
+    let stopping = delete(&app, &format!("/jobs/{running}")).await;
+    assert_eq!(stopping.status, 202);
+    let ended = poll_until(&app, &running, is_final).await;
+    assert_eq!(ended["status"], "cancelled");
+    assert_eq!(ended["message"], "cancelled by request");
+    let steps = ended["progress"]["step"].as_u64().unwrap();
+    assert!(steps < 1_000_000, "stopped early, at step {steps}");
+    // The partial result is kept and ends where the run stopped.
+    let partial = get(&app, &format!("/jobs/{running}/result")).await;
+    assert_eq!(partial.status, 200);
+    assert_eq!(partial.json()["stats"]["status"], "cancelled");
+    assert_eq!(partial.json()["stats"]["steps"], steps);
+
+    let again = delete(&app, &format!("/jobs/{running}")).await;
+    assert_eq!(again.status, 409);
+    assert_eq!(again.problem()["type"], "/problems/already-ended");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_job_over_its_wall_time_fails_with_a_message() {
+    let jobs = JobsConfig { wall_time: std::time::Duration::from_millis(50), ..jobs_config() };
+    let (_, app) = test_app(jobs, ApiConfig::default());
+    let id = post_json(&app, "/jobs", LONG).await.json()["id"].as_str().unwrap().to_string();
+    let ended = poll_until(&app, &id, is_final).await;
+    assert_eq!(ended["status"], "failed");
+    let message = ended["message"].as_str().unwrap();
+    assert!(message.contains("wall-time limit of 0.05 s"), "{message}");
+    assert_eq!(get(&app, &format!("/jobs/{id}/result")).await.status, 409);
+    // Through /simulate, the failure is the server's: a 500 that says why.
+    let api = ApiConfig { simulate_work_budget: u64::MAX, ..ApiConfig::default() };
+    let jobs = JobsConfig { wall_time: std::time::Duration::from_millis(50), ..jobs_config() };
+    let (_, app) = test_app(jobs, api);
+    let answer = post_json(&app, "/simulate", LONG).await;
+    assert_eq!(answer.status, 500);
+    assert!(answer.problem()["detail"].as_str().unwrap().contains("wall-time limit"));
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_panicking_job_fails_alone() {
+    let jobs = JobsConfig {
+        before_run: Some(Arc::new(|c: &drape::scene::Compiled| {
+            if c.duration == 0.25 {
+                panic!("injected failure");
+            }
+        })),
+        ..jobs_config()
+    };
+    let (_, app) = test_app(jobs, ApiConfig::default());
+    let doomed = post_json(&app, "/jobs", &TINY.replace("0.1", "0.25")).await.json();
+    let fine = post_json(&app, "/jobs", TINY).await.json();
+    let doomed = poll_until(&app, doomed["id"].as_str().unwrap(), is_final).await;
+    let fine = poll_until(&app, fine["id"].as_str().unwrap(), is_final).await;
+    assert_eq!(doomed["status"], "failed");
+    assert_eq!(doomed["message"], "the simulation panicked: injected failure");
+    assert_eq!(fine["status"], "succeeded");
+    assert_eq!(get(&app, "/healthz").await.status, 200);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_full_queue_answers_429_with_retry_after() {
+    let jobs = JobsConfig { queue_capacity: 1, ..jobs_config() };
+    let (_, app) = test_app(jobs, ApiConfig::default());
+    let running = post_json(&app, "/jobs", LONG).await.json()["id"].as_str().unwrap().to_string();
+    poll_until(&app, &running, |j| j["status"] == "running").await;
+    let waiting = post_json(&app, "/jobs", TINY).await;
+    assert_eq!(waiting.status, 202);
+    for path in ["/jobs", "/simulate"] {
+        let refused = post_json(&app, path, TINY).await;
+        assert_eq!(refused.status, 429, "{path}");
+        assert_eq!(refused.header("retry-after"), Some("1"));
+        assert_eq!(refused.problem()["type"], "/problems/queue-full");
+    }
+    delete(&app, &format!("/jobs/{running}")).await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn events_of_an_ended_job_are_one_end_event() {
+    let (_, app) = test_app(jobs_config(), ApiConfig::default());
+    let id = post_json(&app, "/jobs", TINY).await.json()["id"].as_str().unwrap().to_string();
+    poll_until(&app, &id, is_final).await;
+    let answer = get(&app, &format!("/jobs/{id}/events")).await;
+    assert_eq!(answer.status, 200);
+    assert_eq!(answer.header("content-type"), Some("text/event-stream"));
+    let text = answer.text();
+    let events: Vec<&str> = text.split("\n\n").filter(|e| !e.trim().is_empty()).collect();
+    assert_eq!(events.len(), 1, "{text}");
+    assert!(events[0].starts_with("event: end\ndata: "), "{text}");
+    let job: Value = serde_json::from_str(events[0].trim_start_matches("event: end\ndata: ")).unwrap();
+    assert_eq!(job["status"], "succeeded");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn health_metrics_and_openapi_answer() {
+    let (_, app) = test_app(jobs_config(), ApiConfig::default());
+    assert_eq!(get(&app, "/healthz").await.json(), serde_json::json!({"status": "ok"}));
+    let id = post_json(&app, "/jobs", TINY).await.json()["id"].as_str().unwrap().to_string();
+    poll_until(&app, &id, is_final).await;
+    let metrics = get(&app, "/metrics").await;
+    assert_eq!(metrics.status, 200);
+    assert!(metrics.header("content-type").unwrap().starts_with("text/plain; version=0.0.4"));
+    let text = metrics.text();
+    for line in [
+        "drape_jobs{status=\"succeeded\"} 1",
+        "drape_jobs{status=\"running\"} 0",
+        "drape_queue_length 0",
+        "drape_running_jobs 0",
+        "drape_particle_steps_total 30",
+        "drape_http_request_duration_seconds_bucket{le=\"+Inf\"}",
+        "drape_http_requests_total{code=\"2xx\"}",
+    ] {
+        assert!(text.contains(line), "missing {line} in\n{text}");
+    }
+    assert!(text.lines().filter(|l| !l.starts_with('#')).all(|l| l.starts_with("drape_")));
+    assert_eq!(get(&app, "/openapi.json").await.json()["openapi"], "3.1.0");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn large_responses_are_gzipped_when_asked_and_cors_answers_preflight() {
+    let api = ApiConfig { cors_origins: vec!["https://app.example".into()], ..ApiConfig::default() };
+    let (_, app) = test_app(jobs_config(), api);
+    let request =
+        Request::get("/openapi.json").header("accept-encoding", "gzip").body(Body::empty()).unwrap();
+    let answer = send(&app, request).await;
+    assert_eq!(answer.header("content-encoding"), Some("gzip"));
+    assert_eq!(&answer.body[..2], [0x1f, 0x8b], "gzip magic");
+    let small =
+        send(&app, Request::get("/healthz").header("accept-encoding", "gzip").body(Body::empty()).unwrap())
+            .await;
+    assert_eq!(small.header("content-encoding"), None, "small bodies are sent as they are");
+
+    let preflight = Request::options("/jobs")
+        .header("origin", "https://app.example")
+        .header("access-control-request-method", "POST")
+        .header("access-control-request-headers", "content-type,idempotency-key")
+        .body(Body::empty())
+        .unwrap();
+    let answer = send(&app, preflight).await;
+    assert_eq!(answer.status, 200);
+    assert_eq!(answer.header("access-control-allow-origin"), Some("https://app.example"));
+    let stranger =
+        Request::get("/healthz").header("origin", "https://evil.example").body(Body::empty()).unwrap();
+    assert_eq!(send(&app, stranger).await.header("access-control-allow-origin"), None);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn timeouts_and_overload_are_problems() {
+    let api = ApiConfig {
+        request_timeout: std::time::Duration::from_millis(20),
+        simulate_work_budget: u64::MAX,
+        ..ApiConfig::default()
+    };
+    let (jobs, app) = test_app(jobs_config(), api);
+    let answer = post_json(&app, "/simulate", LONG).await;
+    assert_eq!(answer.status, 408);
+    assert_eq!(answer.problem()["type"], "/problems/timeout");
+    // The abandoned /simulate job is cancelled.
+    let id = get(&app, "/jobs").await.json()["jobs"][0]["id"].as_str().unwrap().to_string();
+    assert_eq!(poll_until(&app, &id, is_final).await["status"], "cancelled");
+    jobs.shutdown(std::time::Duration::ZERO).await;
+}
