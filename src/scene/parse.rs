@@ -62,7 +62,10 @@ fn read_body(pointer: &str, mut value: Value) -> Result<Body, FieldError> {
     let kind = match object.remove("type") {
         Some(Value::String(kind)) => kind,
         Some(_) => {
-            return Err(FieldError::new(format!("{pointer}/type"), format!("must be a string: {BODY_TYPES}")));
+            return Err(FieldError::new(
+                format!("{pointer}/type"),
+                format!("must be a string: {BODY_TYPES}"),
+            ));
         }
         None => return Err(FieldError::new(format!("{pointer}/type"), format!("missing: {BODY_TYPES}"))),
     };
@@ -93,6 +96,12 @@ fn read<T: DeserializeOwned>(base: &str, value: Value) -> Result<T, FieldError> 
                 Segment::Enum { .. } | Segment::Unknown => {}
             }
         }
-        FieldError::new(pointer, e.into_inner().to_string())
+        let message = e.into_inner().to_string();
+        // serde places a missing field at its parent; the field itself is the useful place.
+        if let Some(field) = message.strip_prefix("missing field `").and_then(|m| m.split('`').next()) {
+            pointer.push('/');
+            pointer.push_str(field);
+        }
+        FieldError::new(pointer, message)
     })
 }
