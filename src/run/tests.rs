@@ -152,3 +152,90 @@ fn the_json_result_carries_the_runs_numbers_exactly() {
         assert_eq!(written.len(), 3 * 36 * 3);
     }
 }
+
+/// Ten masses of 10 g hang from a pin on springs of k = 500 N/m, starting horizontal, so that
+/// they swing and stretch: a nonlinear motion.
+fn swinging_chain(integrator: &str, dt: f64, estimate: &str) -> Value {
+    json!({"duration": 0.5, "dt": dt, "integrator": integrator, "error_estimate": estimate,
+        "bodies": [{"type": "chain", "start": [0, 0, 0], "end": [1, 0, 0], "count": 11, "mass": 0.11,
+                    "spring": {"k": 500}, "pin": [0]}],
+        "output": {"frames": "final"}})
+}
+
+fn final_positions(r: &Recording) -> Vec<f64> {
+    r.frames.positions.as_ref().unwrap().to_f64()
+}
+
+fn estimate_of(r: &Recording) -> (f64, f64) {
+    match &r.stats.error.as_ref().expect("an estimate").outcome {
+        EstimateOutcome::Estimate { max, rms, .. } => (*max, *rms),
+        EstimateOutcome::Unavailable { reason } => panic!("no estimate: {reason}"),
+    }
+}
+
+#[test]
+fn the_richardson_estimate_is_within_a_factor_two_of_the_true_error() {
+    let reference = run(swinging_chain("rk4", 1e-3 / 64.0, "none"));
+    let truth = final_positions(&reference);
+    for integrator in ["symplectic_euler", "verlet", "rk4"] {
+        for dt in [2e-3, 1e-3] {
+            let r = run(swinging_chain(integrator, dt, "richardson"));
+            let errors: Vec<f64> = final_positions(&r)
+                .chunks(3)
+                .zip(truth.chunks(3))
+                .map(|(a, b)| ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt())
+                .collect();
+            let true_max = errors.iter().copied().fold(0.0, f64::max);
+            let (max, _) = estimate_of(&r);
+            let ratio = max / true_max;
+            assert!(
+                (0.5..=2.0).contains(&ratio),
+                "{integrator} at dt {dt}: estimate {max:.3e}, true {true_max:.3e}"
+            );
+            let error = r.stats.error.as_ref().unwrap();
+            assert_eq!(error.order, r.stats.integrator.order());
+            assert!(error.extra_wall_time_s > 0.0);
+        }
+    }
+}
+
+#[test]
+fn three_runs_measure_the_order() {
+    for (integrator, order) in [("symplectic_euler", 1.0), ("verlet", 2.0), ("rk4", 4.0)] {
+        let r = run(swinging_chain(integrator, 1e-3, "richardson3"));
+        let EstimateOutcome::Estimate { observed_order, reliable, .. } = r.stats.error.unwrap().outcome
+        else {
+            panic!("no estimate")
+        };
+        let observed = observed_order.unwrap();
+        assert!((observed - order).abs() < 0.3, "{integrator}: observed order {observed}");
+        assert_eq!(reliable, Some(true));
+    }
+}
+
+#[test]
+fn a_companion_that_diverges_says_so() {
+    // Just inside the stability bound at dt; twice that step is outside it.
+    let scene =
+        Scene::from_json(swinging_chain("symplectic_euler", 1e-3, "richardson").to_string().as_bytes())
+            .unwrap();
+    let bound = scene.compile().model.clone();
+    let dt = 0.9 * crate::solver::stable_step(&bound, 0.0).unwrap();
+    let r = run(swinging_chain("symplectic_euler", dt, "richardson"));
+    assert_eq!(r.stats.status, Status::Succeeded);
+    let EstimateOutcome::Unavailable { reason } = &r.stats.error.as_ref().unwrap().outcome else {
+        panic!("expected the companion to diverge at dt = {}", 2.0 * dt)
+    };
+    assert!(reason.contains("diverged"), "{reason}");
+}
+
+#[test]
+fn one_step_is_too_few_for_a_companion_and_none_asks_for_nothing() {
+    let one = run(json!({"duration": 0.01, "dt": 0.01, "bodies": [small_cloth()]}));
+    assert!(
+        matches!(&one.stats.error.unwrap().outcome, EstimateOutcome::Unavailable { reason } if reason.contains("too few"))
+    );
+    let none =
+        run(json!({"duration": 0.01, "dt": 0.001, "error_estimate": "none", "bodies": [small_cloth()]}));
+    assert_eq!(none.stats.error, None);
+}

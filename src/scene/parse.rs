@@ -45,6 +45,7 @@ impl Scene {
             verlet_damping: raw.verlet_damping,
             solver: raw.solver,
             stop_at_rest: raw.stop_at_rest,
+            error_estimate: raw.error_estimate,
             bodies,
             output: raw.output,
         };
