@@ -9,7 +9,7 @@ use std::io::{self, Write};
 use serde::Serialize;
 use serde::ser::{SerializeMap, Serializer};
 
-use crate::run::{Recording, Samples, Stats};
+use crate::run::{EstimateOutcome, Recording, Samples, Stats};
 use crate::scene::FrameSelection;
 use crate::solver::Energy;
 
@@ -166,6 +166,27 @@ impl Serialize for StatsView<'_> {
                 "last_residual": ls.last_residual,
             });
             map.serialize_entry("linear_solver", &solver)?;
+        }
+        if let Some(e) = &st.error {
+            let method = match e.method {
+                crate::scene::ErrorEstimateName::Richardson3 => "richardson3",
+                _ => "richardson",
+            };
+            let mut error = serde_json::json!({"method": method, "order": e.order, "extra_wall_time_s": e.extra_wall_time_s});
+            match &e.outcome {
+                EstimateOutcome::Estimate { max, rms, observed_order, reliable } => {
+                    error["max"] = (*max).into();
+                    error["rms"] = (*rms).into();
+                    if let Some(order) = observed_order {
+                        error["observed_order"] = (*order).into();
+                    }
+                    if let Some(reliable) = reliable {
+                        error["reliable"] = (*reliable).into();
+                    }
+                }
+                EstimateOutcome::Unavailable { reason } => error["unavailable"] = reason.as_str().into(),
+            }
+            map.serialize_entry("error", &error)?;
         }
         map.end()
     }

@@ -7,30 +7,50 @@
 //! so the step loop takes no lock). Only the fields the scene asks for are computed.
 
 mod control;
+mod error_estimate;
 mod recording;
 mod schedule;
 
 use std::time::Instant;
 
 pub use control::Control;
+pub use error_estimate::{ErrorEstimate, EstimateOutcome};
 pub use recording::{Diverged, Frames, Recording, Samples, Stats, Status};
 
-use crate::scene::{Compiled, Field, Precision};
+use glam::DVec3;
+
+use crate::scene::{Compiled, ErrorEstimateName, Field, Precision};
 use crate::solver::{Real, Simulation, Vec3};
 use schedule::FrameSchedule;
 
 /// Steps between checks of cancellation, progress and rest, when no frame falls sooner.
 const BATCH: u64 = 64;
 
-/// Runs a compiled scene to the end, to divergence, to rest, or until cancelled.
+/// Runs a compiled scene to the end, to divergence, to rest, or until cancelled, with the error
+/// estimate the scene asks for.
 pub fn execute(compiled: &Compiled, control: &Control) -> Recording {
-    match compiled.precision {
-        Precision::F32 => execute_in::<f32>(compiled, control),
-        Precision::F64 => execute_in::<f64>(compiled, control),
+    match compiled.error_estimate {
+        ErrorEstimateName::None => simulate(compiled, control, true).recording,
+        method => error_estimate::execute_with_estimate(compiled, control, method),
     }
 }
 
-fn execute_in<T: Real>(compiled: &Compiled, control: &Control) -> Recording
+/// A run's recording and, if it finished, the positions it ended with.
+struct Outcome {
+    recording: Recording,
+    final_positions: Option<Vec<DVec3>>,
+}
+
+/// One run without an error estimate; `publish_progress` is false for companion runs, which
+/// share the caller's cancellation but not its progress.
+fn simulate(compiled: &Compiled, control: &Control, publish_progress: bool) -> Outcome {
+    match compiled.precision {
+        Precision::F32 => simulate_in::<f32>(compiled, control, publish_progress),
+        Precision::F64 => simulate_in::<f64>(compiled, control, publish_progress),
+    }
+}
+
+fn simulate_in<T: Real>(compiled: &Compiled, control: &Control, publish_progress: bool) -> Outcome
 where
     Samples: From<Vec<T>>,
 {
@@ -71,9 +91,13 @@ where
             divergence = Some(d);
             break;
         }
+        if publish_progress {
+            control.set_progress(simulation.steps_taken());
+        }
+    }
+    if publish_progress {
         control.set_progress(simulation.steps_taken());
     }
-    control.set_progress(simulation.steps_taken());
 
     let finished = status == Status::Succeeded;
     let stable_dt = simulation.stable_dt();
@@ -101,8 +125,11 @@ where
         }),
         stopped_at_rest: rest_time,
         linear_solver: simulation.linear_solve_stats(),
+        error: None,
     };
-    recorder.finish(compiled, stats, finished)
+    let final_positions =
+        finished.then(|| simulation.state().positions.iter().map(|p| p.to_dvec3()).collect());
+    Outcome { recording: recorder.finish(compiled, stats, finished), final_positions }
 }
 
 fn at_rest<T: Real>(velocities: &[Vec3<T>], speed: f64) -> bool {
@@ -196,3 +223,6 @@ where
         }
     }
 }
+
+#[cfg(test)]
+mod tests;

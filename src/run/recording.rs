@@ -1,5 +1,6 @@
 //! What a run produces: the mesh, the recorded frames, and the statistics of the run.
 
+use super::ErrorEstimate;
 use crate::scene::{BodyInfo, DtSource, FrameSelection, Precision};
 use crate::solver::{Energy, IntegratorKind, LinearSolveStats};
 
@@ -142,6 +143,8 @@ pub struct Stats {
     pub stopped_at_rest: Option<f64>,
     /// Implicit Euler's conjugate-gradient figures.
     pub linear_solver: Option<LinearSolveStats>,
+    /// The run's estimate of its own error, when asked for and the run finished.
+    pub error: Option<ErrorEstimate>,
 }
 
 /// Everything a run produced.

@@ -9,7 +9,10 @@
 
 use glam::DVec3;
 
-use super::types::{Body, IntegratorName, OrientationName, Output, Precision, Scene, SpringSpec};
+use super::types::{
+    Body, ErrorEstimateName, FrameSelection, IntegratorName, OrientationName, Output, Precision, Scene,
+    SpringSpec,
+};
 use crate::solver::{self, IntegratorKind, IntegratorSettings, Model, SpringParams};
 
 /// Where a run's step came from.
@@ -65,17 +68,27 @@ pub struct Compiled {
     pub output: Output,
     /// Stop early once every particle is slower than this, in m/s.
     pub stop_at_rest: Option<f64>,
+    /// How the run estimates its own error.
+    pub error_estimate: ErrorEstimateName,
 }
 
 impl Compiled {
-    /// The same run at another step, for the companion runs of an error estimate: `steps` is
-    /// divided by `factor` (at least one step) and `dt` grows to match.
-    pub fn with_coarser_step(&self, factor: u64) -> Self {
-        let steps = (self.steps / factor).max(1);
-        let mut coarse = self.clone();
-        coarse.steps = steps;
-        coarse.config.dt = self.duration / steps as f64;
-        coarse
+    /// A companion for an error estimate: the same scene over its first `steps` steps
+    /// (`duration` seconds), taken in `steps / factor` steps instead, recording nothing and
+    /// estimating nothing. `None` when that leaves fewer than one step.
+    pub fn companion(&self, factor: u64, steps: u64, duration: f64) -> Option<Self> {
+        let coarse_steps = steps / factor;
+        (coarse_steps >= 1).then(|| {
+            let mut coarse = self.clone();
+            coarse.steps = coarse_steps;
+            coarse.duration = duration;
+            coarse.config.dt = duration / coarse_steps as f64;
+            coarse.output =
+                Output { frames: FrameSelection::None, fields: Vec::new(), ..self.output.clone() };
+            coarse.stop_at_rest = None;
+            coarse.error_estimate = ErrorEstimateName::None;
+            coarse
+        })
     }
 }
 
@@ -138,6 +151,7 @@ impl Scene {
             bodies,
             output: self.output.clone(),
             stop_at_rest: self.stop_at_rest,
+            error_estimate: self.error_estimate,
         }
     }
 

@@ -15,3 +15,6 @@ mod validate;
 pub use compile::{BodyInfo, Compiled, DtSource};
 pub use error::{FieldError, SceneError};
 pub use types::*;
+
+#[cfg(test)]
+mod tests;

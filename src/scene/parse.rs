@@ -45,6 +45,7 @@ impl Scene {
             verlet_damping: raw.verlet_damping,
             solver: raw.solver,
             stop_at_rest: raw.stop_at_rest,
+            error_estimate: raw.error_estimate,
             bodies,
             output: raw.output,
         };
@@ -96,6 +97,12 @@ fn read<T: DeserializeOwned>(base: &str, value: Value) -> Result<T, FieldError> 
                 Segment::Enum { .. } | Segment::Unknown => {}
             }
         }
-        FieldError::new(pointer, e.into_inner().to_string())
+        let message = e.into_inner().to_string();
+        // serde places a missing field at its parent; the field itself is the useful place.
+        if let Some(field) = message.strip_prefix("missing field `").and_then(|m| m.split('`').next()) {
+            pointer.push('/');
+            pointer.push_str(field);
+        }
+        FieldError::new(pointer, message)
     })
 }

@@ -23,6 +23,8 @@ pub struct Scene {
     pub solver: SolverSettings,
     /// End the run early once every particle is slower than this, in m/s (default: never).
     pub stop_at_rest: Option<f64>,
+    /// How the run estimates its own error (default `richardson`).
+    pub error_estimate: ErrorEstimateName,
     /// The bodies, in order; particle indices in results run over them in this order.
     pub bodies: Vec<Body>,
     /// What to record and how to encode it.
@@ -50,6 +52,8 @@ pub(super) struct RawScene {
     pub solver: SolverSettings,
     #[serde(default)]
     pub stop_at_rest: Option<f64>,
+    #[serde(default)]
+    pub error_estimate: ErrorEstimateName,
     pub bodies: Vec<serde_json::Value>,
     #[serde(default)]
     pub output: Output,
@@ -95,6 +99,19 @@ impl Precision {
             Self::F64 => "f64",
         }
     }
+}
+
+/// How a run estimates its own error.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ErrorEstimateName {
+    /// A companion run at twice the step (the default).
+    #[default]
+    Richardson,
+    /// Companions at twice and four times the step, which also measure the order.
+    Richardson3,
+    /// No estimate.
+    None,
 }
 
 /// Settings of implicit Euler's conjugate-gradient solve.

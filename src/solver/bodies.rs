@@ -109,6 +109,14 @@ pub struct Mesh {
     pub pins: Vec<usize>,
 }
 
+/// Each spring family of a cloth as the pairs of grid offsets `[ai, aj, bi, bj]` it joins:
+/// particle `(i + ai, j + aj)` to `(i + bi, j + bj)`.
+const CLOTH_STENCIL: [(SpringKind, [[usize; 4]; 2]); 3] = [
+    (SpringKind::Structural, [[0, 0, 1, 0], [0, 0, 0, 1]]),
+    (SpringKind::Shear, [[0, 0, 1, 1], [1, 0, 0, 1]]),
+    (SpringKind::Bending, [[0, 0, 2, 0], [0, 0, 0, 2]]),
+];
+
 /// The area a mesh assigns to each vertex: a third of each triangle it belongs to.
 pub fn vertex_areas(vertices: &[DVec3], triangles: &[[usize; 3]]) -> Vec<f64> {
     let mut areas = vec![0.0; vertices.len()];
@@ -141,13 +149,13 @@ impl Model {
         let range = self.add_particles(positions, |_| per_particle, cloth.velocity);
         let at = |i: usize, j: usize| range.start + j * nx + i;
 
-        let grid_springs: [(SpringKind, SpringParams, &[(usize, usize, usize, usize)]); 3] = [
-            (SpringKind::Structural, cloth.structural, &[(0, 0, 1, 0), (0, 0, 0, 1)]),
-            (SpringKind::Shear, cloth.shear, &[(0, 0, 1, 1), (1, 0, 0, 1)]),
-            (SpringKind::Bending, cloth.bending, &[(0, 0, 2, 0), (0, 0, 0, 2)]),
-        ];
-        for (kind, params, offsets) in grid_springs {
-            for &(ai, aj, bi, bj) in offsets {
+        for (kind, offsets) in CLOTH_STENCIL {
+            let params = match kind {
+                SpringKind::Structural => cloth.structural,
+                SpringKind::Shear => cloth.shear,
+                SpringKind::Bending => cloth.bending,
+            };
+            for [ai, aj, bi, bj] in offsets {
                 let (reach_i, reach_j) = (ai.max(bi), aj.max(bj));
                 for j in 0..ny.saturating_sub(reach_j) {
                     for i in 0..nx.saturating_sub(reach_i) {

@@ -117,14 +117,6 @@ impl<T: Real> Stepper<T> {
         }
     }
 
-    /// Tells the integrator that something outside it (a constraint, a contact) changed the
-    /// state, so that anything it cached from the last step must be recomputed.
-    pub fn state_changed(&mut self) {
-        if let Self::Verlet(v) = self {
-            v.invalidate();
-        }
-    }
-
     /// The linear solver's figures, for integrators that solve one.
     pub fn linear_solve_stats(&self) -> Option<LinearSolveStats> {
         match self {

@@ -31,11 +31,6 @@ impl<T: Real> Verlet<T> {
         }
     }
 
-    /// Forgets the cached acceleration: the state was changed from outside.
-    pub fn invalidate(&mut self) {
-        self.primed = false;
-    }
-
     pub fn step(&mut self, state: &mut State<T>, dynamics: &Dynamics<T>, h: T) {
         if !self.primed {
             dynamics.accelerations(&state.positions, &state.velocities, &mut self.accelerations);

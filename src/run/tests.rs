@@ -1,0 +1,241 @@
+//! The runner: frame schedules, fields, divergence, rest and cancellation, and the JSON result.
+
+use serde_json::{Value, json};
+
+use super::*;
+use crate::scene::Scene;
+
+fn run(scene: Value) -> Recording {
+    let scene = Scene::from_json(scene.to_string().as_bytes()).unwrap();
+    execute(&scene.compile(), &Control::new())
+}
+
+fn small_cloth() -> Value {
+    json!({"type": "cloth", "resolution": [6, 6], "pin": [[0, 0], [5, 0]]})
+}
+
+#[test]
+fn frames_fall_every_frame_interval_and_the_last_on_the_duration() {
+    let r = run(json!({"duration": 1.05, "dt": 1e-3, "bodies": [small_cloth()], "output": {"fps": 10}}));
+    assert_eq!(r.stats.status, Status::Succeeded);
+    assert_eq!(r.stats.steps, 1050);
+    let expected: Vec<f64> = (0..=10).map(|k| k as f64 * 0.1).chain([1.05]).collect();
+    assert_eq!(r.frames.len(), expected.len());
+    for (t, e) in r.frames.times.iter().zip(&expected) {
+        assert!((t - e).abs() < 1e-12, "{t} vs {e}");
+    }
+    assert_eq!(*r.frames.times.last().unwrap(), 1.05);
+    assert!(r.has_final);
+    assert_eq!(r.frames.positions.as_ref().unwrap().len(), 12 * 36 * 3);
+}
+
+#[test]
+fn final_and_none_keep_one_frame_and_no_frame() {
+    let base = |frames| json!({"duration": 0.1, "dt": 1e-3, "bodies": [small_cloth()], "output": {"frames": frames}});
+    let last = run(base("final"));
+    assert_eq!((last.frames.times.as_slice(), last.has_final), ([0.1].as_slice(), true));
+    let none = run(base("none"));
+    assert!(none.frames.is_empty() && !none.has_final);
+    assert_eq!(none.stats.steps, 100);
+    assert_eq!(none.stats.energy.map(|e| e.kinetic > 0.0), Some(true));
+}
+
+#[test]
+fn only_the_fields_asked_for_are_recorded() {
+    let r = run(json!({"duration": 0.1, "dt": 1e-3, "bodies": [small_cloth()],
+        "output": {"frames": "final", "fields": ["velocities", "normals", "energy", "strain"]}}));
+    let f = &r.frames;
+    assert!(f.positions.is_none());
+    assert_eq!(f.velocities.as_ref().map(Samples::len), Some(36 * 3));
+    assert_eq!(f.normals.as_ref().map(Samples::len), Some(36 * 3));
+    assert_eq!(f.strain.as_ref().map(Vec::len), Some(r.springs));
+    assert_eq!(f.energy.as_ref().unwrap()[0], r.stats.energy.unwrap());
+    assert!(r.stats.stages.contains(&"normals"));
+    let normals = f.normals.as_ref().unwrap().to_f64();
+    for n in normals.chunks(3) {
+        assert!(((n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt() - 1.0).abs() < 1e-12);
+    }
+    let plain = run(json!({"duration": 0.1, "dt": 1e-3, "bodies": [small_cloth()]}));
+    assert!(!plain.stats.stages.contains(&"normals"));
+}
+
+#[test]
+fn a_diverged_run_keeps_its_finite_frames_and_says_why() {
+    let r = run(json!({"duration": 1.0, "dt": 0.01, "integrator": "symplectic_euler",
+        "bodies": [{"type": "cloth", "resolution": [5, 5], "mass": 0.001, "pin": [[0, 0]],
+                    "springs": {"structural": {"k": 1e5}}}],
+        "output": {"fps": 100, "fields": ["positions", "velocities"]}}));
+    assert_eq!(r.stats.status, Status::Diverged);
+    let d = r.stats.diverged.as_ref().unwrap();
+    assert!(d.step >= 1 && d.step < 100 && (d.t - d.step as f64 * 0.01).abs() < 1e-12, "{d:?}");
+    let suggested = d.suggested_dt.unwrap();
+    assert!(suggested < r.stats.stable_dt.unwrap() && suggested < 0.01);
+    assert!(!r.has_final && r.stats.energy.is_none());
+    assert!(r.frames.len() <= d.step as usize);
+    for samples in [&r.frames.positions, &r.frames.velocities] {
+        assert!(samples.as_ref().unwrap().to_f64().iter().all(|x| x.is_finite()));
+    }
+}
+
+#[test]
+fn a_run_stops_at_rest_when_asked() {
+    let r = run(json!({"duration": 20.0, "dt": 0.01, "integrator": "implicit_euler", "stop_at_rest": 1e-3,
+        "bodies": [{"type": "chain", "start": [0, 0, 0], "end": [0, -1, 0], "count": 5, "pin": [0],
+                    "spring": {"k": 100, "damping": 1}}],
+        "output": {"fps": 1}}));
+    assert_eq!(r.stats.status, Status::Succeeded);
+    let t = r.stats.stopped_at_rest.expect("the damped chain comes to rest");
+    assert!(t < 20.0 && t > 0.0);
+    assert_eq!(*r.frames.times.last().unwrap(), t);
+    let v = r.frames.positions.as_ref().unwrap();
+    assert_eq!(v.len(), r.frames.len() * 15);
+}
+
+#[test]
+fn a_cancelled_run_stops_before_its_end() {
+    let scene = Scene::from_json(
+        json!({"duration": 10.0, "dt": 1e-3, "bodies": [small_cloth()]}).to_string().as_bytes(),
+    )
+    .unwrap();
+    let control = Control::new();
+    control.cancel();
+    let r = execute(&scene.compile(), &control);
+    assert_eq!(r.stats.status, Status::Cancelled);
+    assert_eq!(r.stats.steps, 0);
+    assert_eq!(control.steps_done(), 0);
+    assert!(!r.has_final);
+}
+
+#[test]
+fn progress_reaches_the_step_count() {
+    let scene = Scene::from_json(
+        json!({"duration": 0.5, "dt": 1e-3, "bodies": [small_cloth()]}).to_string().as_bytes(),
+    )
+    .unwrap();
+    let control = Control::new();
+    let r = execute(&scene.compile(), &control);
+    assert_eq!(control.steps_done(), r.stats.steps);
+    assert_eq!(r.stats.steps, 500);
+}
+
+#[test]
+fn the_json_result_carries_the_runs_numbers_exactly() {
+    for precision in ["f32", "f64"] {
+        let r = run(json!({"duration": 0.1, "dt": 1e-3, "precision": precision, "bodies": [small_cloth()],
+            "output": {"fps": 20, "fields": ["positions", "energy"]}}));
+        let mut bytes = Vec::new();
+        crate::output::write_json(&r, &mut bytes).unwrap();
+        let v: Value = serde_json::from_slice(&bytes).unwrap();
+        assert_eq!(v["mesh"]["particles"], 36);
+        assert_eq!(v["mesh"]["triangles"].as_array().unwrap().len(), 3 * 50);
+        assert_eq!(
+            v["mesh"]["bodies"][0],
+            json!({"name": "cloth0", "type": "cloth", "offset": 0, "count": 36})
+        );
+        let frames = v["frames"].as_array().unwrap();
+        assert_eq!(frames.len(), 3);
+        assert_eq!(v["final"], frames[2]);
+        assert_eq!(v["stats"]["precision"], precision);
+        assert_eq!(v["stats"]["stages"], json!(["gravity", "springs"]));
+        let written: Vec<f64> = frames
+            .iter()
+            .flat_map(|f| f["positions"].as_array().unwrap().iter().map(|x| x.as_f64().unwrap()))
+            .collect();
+        match r.frames.positions.as_ref().unwrap() {
+            Samples::F32(values) => {
+                assert!(values.iter().zip(&written).all(|(a, b)| a.to_bits() == (*b as f32).to_bits()))
+            }
+            Samples::F64(values) => {
+                assert!(values.iter().zip(&written).all(|(a, b)| a.to_bits() == b.to_bits()))
+            }
+        }
+        assert_eq!(written.len(), 3 * 36 * 3);
+    }
+}
+
+/// Ten masses of 10 g hang from a pin on springs of k = 500 N/m, starting horizontal, so that
+/// they swing and stretch: a nonlinear motion.
+fn swinging_chain(integrator: &str, dt: f64, estimate: &str) -> Value {
+    json!({"duration": 0.5, "dt": dt, "integrator": integrator, "error_estimate": estimate,
+        "bodies": [{"type": "chain", "start": [0, 0, 0], "end": [1, 0, 0], "count": 11, "mass": 0.11,
+                    "spring": {"k": 500}, "pin": [0]}],
+        "output": {"frames": "final"}})
+}
+
+fn final_positions(r: &Recording) -> Vec<f64> {
+    r.frames.positions.as_ref().unwrap().to_f64()
+}
+
+fn estimate_of(r: &Recording) -> (f64, f64) {
+    match &r.stats.error.as_ref().expect("an estimate").outcome {
+        EstimateOutcome::Estimate { max, rms, .. } => (*max, *rms),
+        EstimateOutcome::Unavailable { reason } => panic!("no estimate: {reason}"),
+    }
+}
+
+#[test]
+fn the_richardson_estimate_is_within_a_factor_two_of_the_true_error() {
+    let reference = run(swinging_chain("rk4", 1e-3 / 64.0, "none"));
+    let truth = final_positions(&reference);
+    for integrator in ["symplectic_euler", "verlet", "rk4"] {
+        for dt in [2e-3, 1e-3] {
+            let r = run(swinging_chain(integrator, dt, "richardson"));
+            let errors: Vec<f64> = final_positions(&r)
+                .chunks(3)
+                .zip(truth.chunks(3))
+                .map(|(a, b)| ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt())
+                .collect();
+            let true_max = errors.iter().copied().fold(0.0, f64::max);
+            let (max, _) = estimate_of(&r);
+            let ratio = max / true_max;
+            assert!(
+                (0.5..=2.0).contains(&ratio),
+                "{integrator} at dt {dt}: estimate {max:.3e}, true {true_max:.3e}"
+            );
+            let error = r.stats.error.as_ref().unwrap();
+            assert_eq!(error.order, r.stats.integrator.order());
+            assert!(error.extra_wall_time_s > 0.0);
+        }
+    }
+}
+
+#[test]
+fn three_runs_measure_the_order() {
+    for (integrator, order) in [("symplectic_euler", 1.0), ("verlet", 2.0), ("rk4", 4.0)] {
+        let r = run(swinging_chain(integrator, 1e-3, "richardson3"));
+        let EstimateOutcome::Estimate { observed_order, reliable, .. } = r.stats.error.unwrap().outcome
+        else {
+            panic!("no estimate")
+        };
+        let observed = observed_order.unwrap();
+        assert!((observed - order).abs() < 0.3, "{integrator}: observed order {observed}");
+        assert_eq!(reliable, Some(true));
+    }
+}
+
+#[test]
+fn a_companion_that_diverges_says_so() {
+    // Just inside the stability bound at dt; twice that step is outside it.
+    let scene =
+        Scene::from_json(swinging_chain("symplectic_euler", 1e-3, "richardson").to_string().as_bytes())
+            .unwrap();
+    let bound = scene.compile().model.clone();
+    let dt = 0.9 * crate::solver::stable_step(&bound, 0.0).unwrap();
+    let r = run(swinging_chain("symplectic_euler", dt, "richardson"));
+    assert_eq!(r.stats.status, Status::Succeeded);
+    let EstimateOutcome::Unavailable { reason } = &r.stats.error.as_ref().unwrap().outcome else {
+        panic!("expected the companion to diverge at dt = {}", 2.0 * dt)
+    };
+    assert!(reason.contains("diverged"), "{reason}");
+}
+
+#[test]
+fn one_step_is_too_few_for_a_companion_and_none_asks_for_nothing() {
+    let one = run(json!({"duration": 0.01, "dt": 0.01, "bodies": [small_cloth()]}));
+    assert!(
+        matches!(&one.stats.error.unwrap().outcome, EstimateOutcome::Unavailable { reason } if reason.contains("too few"))
+    );
+    let none =
+        run(json!({"duration": 0.01, "dt": 0.001, "error_estimate": "none", "bodies": [small_cloth()]}));
+    assert_eq!(none.stats.error, None);
+}
