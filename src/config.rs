@@ -39,8 +39,8 @@ pub struct Config {
     /// Longest a job may run, in seconds; it is then stopped and marked failed.
     #[arg(long, env = "DRAPE_JOB_WALL_TIME", default_value = "300", value_parser = seconds)]
     pub job_wall_time: Duration,
-    /// Largest run POST /simulate takes, in particle-steps (particles × steps); larger runs get
-    /// 413 and a pointer to POST /jobs.
+    /// Largest run POST /simulate takes, in particle-steps (particles × steps, error-estimate
+    /// companions included); larger runs get 413 and a pointer to POST /jobs.
     #[arg(long, env = "DRAPE_SIMULATE_WORK_BUDGET", default_value_t = ApiConfig::default().simulate_work_budget)]
     pub simulate_work_budget: u64,
     /// Longest time to answer a request, in seconds (408 after); it must cover a /simulate run.

@@ -197,7 +197,7 @@ impl AppError {
                 "over-simulate-budget",
                 "Too large to run synchronously",
                 format!(
-                    "the run needs {work} particle-steps (particles × steps), over the {budget} that POST /simulate \
+                    "the run needs {work} particle-steps (particles × steps, error-estimate companions included), over the {budget} that POST /simulate \
                      runs while you wait; submit it to POST /jobs instead and fetch /jobs/{{id}}/result"
                 ),
             ),

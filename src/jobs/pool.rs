@@ -88,7 +88,10 @@ fn run_job(shared: &Shared, id: &JobId, ticket: Ticket) {
     };
     shared.running.fetch_sub(1, Ordering::Relaxed);
     let elapsed = started.elapsed();
-    shared.particle_steps.fetch_add(live.plan.particles.saturating_mul(steps_done), Ordering::Relaxed);
+    // Companion runs of the error estimate are counted when the run finished with them.
+    let companions = if outcome.status == JobStatus::Succeeded { live.plan.companion_steps } else { 0 };
+    let work = live.plan.particles.saturating_mul(steps_done.saturating_add(companions));
+    shared.particle_steps.fetch_add(work, Ordering::Relaxed);
     shared.busy_nanos.fetch_add(elapsed.as_nanos() as u64, Ordering::Relaxed);
     tracing::info!(job = %id, status = outcome.status.name(), wall_time_s = elapsed.as_secs_f64(), "job ended");
     shared.finish(id, &live, outcome);

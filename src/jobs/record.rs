@@ -38,6 +38,8 @@ pub struct Plan {
     pub springs: u64,
     /// Steps to take.
     pub steps: u64,
+    /// Steps of the error estimate's companion runs, at coarser steps beside the main run.
+    pub companion_steps: u64,
     /// The step, in seconds.
     pub dt: f64,
     /// Simulated time, in seconds.
@@ -45,9 +47,9 @@ pub struct Plan {
 }
 
 impl Plan {
-    /// Particle-steps: the work of the run.
+    /// Particle-steps: the work of the run, companions included.
     pub fn work(&self) -> u64 {
-        self.particles.saturating_mul(self.steps)
+        self.particles.saturating_mul(self.steps.saturating_add(self.companion_steps))
     }
 }
 
