@@ -176,16 +176,19 @@ async fn a_job_over_its_wall_time_fails_with_a_message() {
     let id = post_json(&app, "/jobs", LONG).await.json()["id"].as_str().unwrap().to_string();
     let ended = poll_until(&app, &id, is_final).await;
     assert_eq!(ended["status"], "failed");
+    assert_eq!(ended["failure"], "wall_time");
     let message = ended["message"].as_str().unwrap();
     assert!(message.contains("wall-time limit of 0.05 s"), "{message}");
     assert_eq!(get(&app, &format!("/jobs/{id}/result")).await.status, 409);
-    // Through /simulate, the failure is the server's: a 500 that says why.
+    // Through /simulate, the answer is about the scene: a 422 that says why.
     let api = ApiConfig { simulate_work_budget: u64::MAX, ..ApiConfig::default() };
     let jobs = JobsConfig { wall_time: std::time::Duration::from_millis(50), ..jobs_config() };
     let (_, app) = test_app(jobs, api);
     let answer = post_json(&app, "/simulate", LONG).await;
-    assert_eq!(answer.status, 500);
-    assert!(answer.problem()["detail"].as_str().unwrap().contains("wall-time limit"));
+    assert_eq!(answer.status, 422);
+    let problem = answer.problem();
+    assert_eq!(problem["type"], "/problems/wall-time-exceeded");
+    assert!(problem["detail"].as_str().unwrap().contains("wall-time limit of 0.05 s"), "{problem}");
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -205,6 +208,7 @@ async fn a_panicking_job_fails_alone() {
     let fine = poll_until(&app, fine["id"].as_str().unwrap(), is_final).await;
     assert_eq!(doomed["status"], "failed");
     assert_eq!(doomed["message"], "the simulation panicked: injected failure");
+    assert_eq!(doomed["failure"], "panicked");
     assert_eq!(fine["status"], "succeeded");
     assert_eq!(get(&app, "/healthz").await.status, 200);
 }

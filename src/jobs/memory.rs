@@ -122,6 +122,7 @@ impl JobStore for MemoryStore {
             record.finished_ms = Some(finished_ms);
             record.steps_done = outcome.steps_done;
             record.message = outcome.message;
+            record.failure = outcome.failure;
             record.stats = outcome.stats;
             entry.result = outcome.result;
             Ok(())

@@ -26,5 +26,5 @@ pub use limits::Limits;
 pub use memory::MemoryStore;
 pub use record::{Idempotency, JobRecord, Plan, now_ms};
 pub use service::{BeforeRun, Cancelled, Jobs, JobsConfig, Submission, SubmitError, Submitted};
-pub use status::JobStatus;
+pub use status::{Failure, JobStatus};
 pub use store::{Inserted, JobStore, Outcome, Page, StoreError, StoredResult};

@@ -16,7 +16,7 @@ use std::time::{Duration, Instant};
 
 use super::service::{Live, Shared, Ticket};
 use super::store::Outcome;
-use super::{JobId, JobStatus, encode_result, now_ms};
+use super::{Failure, JobId, JobStatus, encode_result, now_ms};
 use crate::output::stats_json;
 use crate::run::{Status, execute};
 
@@ -78,13 +78,18 @@ fn run_job(shared: &Shared, id: &JobId, ticket: Ticket) {
                 ),
                 Status::Cancelled => (JobStatus::Cancelled, Some(live.cancel_reason())),
             };
-            let result = (status != JobStatus::Failed).then_some(result);
-            Outcome { status, steps_done, message, stats: Some(stats_json(&stats)), result }
+            let failure = (status == JobStatus::Failed).then_some(Failure::WallTime);
+            let result = failure.is_none().then_some(result);
+            Outcome { status, steps_done, message, failure, stats: Some(stats_json(&stats)), result }
         }
-        Ok((_, Err(e))) => failed(steps_done, format!("the result could not be encoded: {e}")),
-        Err(panic) => {
-            failed(steps_done, format!("the simulation panicked: {}", panic_message(panic.as_ref())))
+        Ok((_, Err(e))) => {
+            failed(steps_done, Failure::Encoding, format!("the result could not be encoded: {e}"))
         }
+        Err(panic) => failed(
+            steps_done,
+            Failure::Panicked,
+            format!("the simulation panicked: {}", panic_message(panic.as_ref())),
+        ),
     };
     shared.running.fetch_sub(1, Ordering::Relaxed);
     let elapsed = started.elapsed();
@@ -97,8 +102,15 @@ fn run_job(shared: &Shared, id: &JobId, ticket: Ticket) {
     shared.finish(id, &live, outcome);
 }
 
-fn failed(steps_done: u64, message: String) -> Outcome {
-    Outcome { status: JobStatus::Failed, steps_done, message: Some(message), stats: None, result: None }
+fn failed(steps_done: u64, failure: Failure, message: String) -> Outcome {
+    Outcome {
+        status: JobStatus::Failed,
+        steps_done,
+        message: Some(message),
+        failure: Some(failure),
+        stats: None,
+        result: None,
+    }
 }
 
 fn panic_message(payload: &(dyn Any + Send)) -> &str {

@@ -2,7 +2,7 @@
 
 use std::time::{SystemTime, UNIX_EPOCH};
 
-use super::{JobId, JobStatus};
+use super::{Failure, JobId, JobStatus};
 
 /// One job as stored.
 #[derive(Clone, Debug, PartialEq)]
@@ -23,6 +23,8 @@ pub struct JobRecord {
     pub steps_done: u64,
     /// Why it failed or was cancelled, in words for a user.
     pub message: Option<String>,
+    /// What kind of failure, for a failed job.
+    pub failure: Option<Failure>,
     /// The result's `stats` object, once it ended with a result.
     pub stats: Option<serde_json::Value>,
     /// The `Idempotency-Key` it was submitted with, and the fingerprint of its body.
@@ -74,6 +76,7 @@ impl JobRecord {
             plan,
             steps_done: 0,
             message: None,
+            failure: None,
             stats: None,
             idempotency,
         }

@@ -422,6 +422,7 @@ fn cancelled_unrun(live: &Live) -> Outcome {
         status: JobStatus::Cancelled,
         steps_done: 0,
         message: Some(live.cancel_reason()),
+        failure: None,
         stats: None,
         result: None,
     }
