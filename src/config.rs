@@ -52,6 +52,9 @@ pub struct Config {
     /// Origins a web page may call from (comma-separated; `*` for any).
     #[arg(long, env = "DRAPE_CORS_ORIGINS", default_value = "*", value_delimiter = ',')]
     pub cors_origins: Vec<String>,
+    /// Ended jobs kept in memory with their results; older ones are forgotten.
+    #[arg(long, env = "DRAPE_RETAIN_JOBS", default_value_t = crate::jobs::MemoryStore::DEFAULT_RETAIN)]
+    pub retain_jobs: usize,
     /// Seconds running jobs get to finish on SIGINT or SIGTERM before they are cancelled.
     #[arg(long, env = "DRAPE_SHUTDOWN_GRACE", default_value = "30", value_parser = seconds)]
     pub shutdown_grace: Duration,

@@ -18,7 +18,7 @@ use crate::jobs::{Jobs, MemoryStore};
 /// Serves until `shutdown` completes, then shuts down within the configured grace period.
 pub async fn run(config: Config, shutdown: impl Future<Output = ()> + Send + 'static) -> std::io::Result<()> {
     let listener = TcpListener::bind(config.addr).await?;
-    let jobs = Jobs::start(Arc::new(MemoryStore::new()), config.jobs());
+    let jobs = Jobs::start(Arc::new(MemoryStore::retaining(config.retain_jobs)), config.jobs());
     // The first line on standard output is the address, for scripts and tests that pick port 0.
     println!("drape listening on http://{}", listener.local_addr()?);
     tracing::info!(addr = %listener.local_addr()?, workers = jobs.config().workers, "serving");

@@ -315,3 +315,29 @@ async fn timeouts_and_overload_are_problems() {
     assert_eq!(poll_until(&app, &id, is_final).await["status"], "cancelled");
     jobs.shutdown(std::time::Duration::ZERO).await;
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn requests_over_the_concurrency_limit_are_shed_with_503() {
+    let api =
+        ApiConfig { max_concurrent_requests: 1, simulate_work_budget: u64::MAX, ..ApiConfig::default() };
+    let (jobs, app) = test_app(jobs_config(), api);
+    let waiting = tokio::spawn({
+        let app = app.clone();
+        async move { post_json(&app, "/simulate", LONG).await }
+    });
+    // The /simulate request holds the only permit while its job runs.
+    while jobs.running() == 0 {
+        tokio::time::sleep(std::time::Duration::from_millis(5)).await;
+    }
+    let shed = get(&app, "/healthz").await;
+    assert_eq!(shed.status, 503);
+    assert_eq!(shed.problem()["type"], "/problems/overloaded");
+
+    let page = drape::jobs::Page { offset: 0, limit: 1 };
+    let id = jobs.list(page).await.unwrap()[0].id.clone();
+    jobs.cancel(&id).await.unwrap();
+    let cancelled = waiting.await.unwrap();
+    assert_eq!(cancelled.status, 409);
+    assert_eq!(cancelled.problem()["type"], "/problems/job-cancelled");
+    assert_eq!(get(&app, "/healthz").await.status, 200);
+}
