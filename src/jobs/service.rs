@@ -236,6 +236,17 @@ impl Jobs {
             }
         }
 
+        // A full queue refuses before any work; the slot is freed if admission fails.
+        let shared = &self.shared;
+        let Some(slot) = shared.queue.reserve() else {
+            return Err(if shared.stopped.load(Ordering::Relaxed) {
+                SubmitError::ShuttingDown
+            } else {
+                SubmitError::QueueFull
+            });
+        };
+        // Admission counts particles and springs, then compiles (which allocates them), so it
+        // runs off the async threads.
         let limits = *self.limits();
         let (compiled, plan) = tokio::task::spawn_blocking(move || limits.admit(&scene))
             .await
@@ -247,14 +258,6 @@ impl Jobs {
             }
         }
 
-        let shared = &self.shared;
-        let Some(slot) = shared.queue.reserve() else {
-            return Err(if shared.stopped.load(Ordering::Relaxed) {
-                SubmitError::ShuttingDown
-            } else {
-                SubmitError::QueueFull
-            });
-        };
         let id = JobId::new();
         let record = JobRecord::queued(id.clone(), plan, idempotency.clone());
         let live = Arc::new(Live {
