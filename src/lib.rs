@@ -8,6 +8,8 @@
 //! - [`run`]: runs one compiled scene to a [`run::Recording`]: steps it, records the frames and
 //!   fields asked for, watches for divergence.
 //! - [`output`]: encoders that turn a recording into the bytes a client asked for.
+//! - [`sweep`]: parameter sweeps: variants of a scene at JSON Pointers, run into one table with
+//!   errors, CSV and a work-precision plot.
 //!
 //! Data flows one way: scene JSON → [`scene::Scene`] → [`scene::Compiled`] → [`run::execute`] →
 //! [`run::Recording`] → [`output`].
@@ -16,3 +18,4 @@ pub mod output;
 pub mod run;
 pub mod scene;
 pub mod solver;
+pub mod sweep;

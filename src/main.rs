@@ -1,13 +1,14 @@
-//! The `drape` command: run a scene from the shell.
+//! The `drape` command: run a scene or a sweep from the shell.
 
 use std::io::Write;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
 use drape::run::{Control, execute};
 use drape::scene::Scene;
+use drape::sweep::{Sweep, run_locally, write_csv, write_svg};
 
 /// Cloth and mass-spring simulation.
 #[derive(Parser)]
@@ -27,27 +28,94 @@ enum Command {
         #[arg(short, long)]
         output: Option<PathBuf>,
     },
+    /// Runs every variant of a sweep and prints its table (JSON, or CSV with --csv).
+    Sweep {
+        /// The sweep, as a JSON file (`-` reads standard input).
+        sweep: PathBuf,
+        /// Print the table as CSV instead of JSON.
+        #[arg(long)]
+        csv: bool,
+        /// Also write the work-precision plot (error against wall time) as SVG to this file.
+        #[arg(long)]
+        plot: Option<PathBuf>,
+        /// Runs at a time (default: one per core).
+        #[arg(long)]
+        threads: Option<usize>,
+        /// Refuse sweeps with more variants than this.
+        #[arg(long, default_value_t = 1000)]
+        max_variants: u64,
+    },
 }
 
 fn main() -> ExitCode {
     match Cli::parse().command {
         Command::Run { scene, output } => run(&scene, output.as_deref()),
+        Command::Sweep { sweep, csv, plot, threads, max_variants } => {
+            let threads =
+                threads.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
+            run_sweep(&sweep, csv, plot.as_deref(), threads, max_variants)
+        }
     }
 }
 
-fn run(path: &std::path::Path, output: Option<&std::path::Path>) -> ExitCode {
+/// Reads a file, or standard input for `-`.
+fn read_input(path: &Path) -> Result<Vec<u8>, ExitCode> {
     let text = if path.as_os_str() == "-" {
         let mut text = Vec::new();
         std::io::Read::read_to_end(&mut std::io::stdin(), &mut text).map(|_| text)
     } else {
         std::fs::read(path)
     };
-    let text = match text {
+    text.map_err(|e| {
+        eprintln!("drape: cannot read {}: {e}", path.display());
+        ExitCode::from(2)
+    })
+}
+
+fn run_sweep(path: &Path, csv: bool, plot: Option<&Path>, threads: usize, max_variants: u64) -> ExitCode {
+    let text = match read_input(path) {
         Ok(text) => text,
+        Err(code) => return code,
+    };
+    let sweep = match Sweep::from_json(&text, max_variants) {
+        Ok(sweep) => sweep,
         Err(e) => {
-            eprintln!("drape: cannot read {}: {e}", path.display());
+            eprintln!("drape: {} is not a valid sweep:", path.display());
+            match e.field_errors() {
+                [] => eprintln!("  {e}"),
+                errors => errors.iter().for_each(|fe| eprintln!("  {fe}")),
+            }
             return ExitCode::from(2);
         }
+    };
+    let table = run_locally(&sweep, threads);
+    let mut out = std::io::BufWriter::new(std::io::stdout().lock());
+    let printed = if csv {
+        write_csv(&table, &mut out)
+    } else {
+        serde_json::to_writer_pretty(&mut out, &table.to_json())
+            .map_err(std::io::Error::other)
+            .and_then(|_| writeln!(out))
+    };
+    let plotted = match plot {
+        Some(file) => {
+            std::fs::File::create(file).and_then(|f| write_svg(&table, &path.display().to_string(), f))
+        }
+        None => Ok(()),
+    };
+    match printed.and_then(|_| out.flush()).and(plotted) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("drape: cannot write the table: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn run(path: &Path, output: Option<&Path>) -> ExitCode {
+    let text = match read_input(path) {
+        Ok(text) => text,
+        Err(code) => return code,
     };
     let scene = match Scene::from_json(&text) {
         Ok(scene) => scene,
