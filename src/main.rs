@@ -6,6 +6,7 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
+use drape::output::{Format, encode};
 use drape::run::{Control, execute};
 use drape::scene::Scene;
 
@@ -19,23 +20,27 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
-    /// Runs a scene and prints its JSON result (or writes it to a file).
+    /// Runs a scene and prints its result (or writes it to a file).
     Run {
         /// The scene, as a JSON file (`-` reads standard input).
         scene: PathBuf,
         /// Write the result here instead of standard output.
         #[arg(short, long)]
         output: Option<PathBuf>,
+        /// Encode the result as json, glb, obj, npy, npz or pc2 (default: the scene's
+        /// `output.format`). npy becomes npz when the scene asks for more than positions.
+        #[arg(short, long)]
+        format: Option<Format>,
     },
 }
 
 fn main() -> ExitCode {
     match Cli::parse().command {
-        Command::Run { scene, output } => run(&scene, output.as_deref()),
+        Command::Run { scene, output, format } => run(&scene, output.as_deref(), format),
     }
 }
 
-fn run(path: &std::path::Path, output: Option<&std::path::Path>) -> ExitCode {
+fn run(path: &std::path::Path, output: Option<&std::path::Path>, format: Option<Format>) -> ExitCode {
     let text = if path.as_os_str() == "-" {
         let mut text = Vec::new();
         std::io::Read::read_to_end(&mut std::io::stdin(), &mut text).map(|_| text)
@@ -60,15 +65,20 @@ fn run(path: &std::path::Path, output: Option<&std::path::Path>) -> ExitCode {
             return ExitCode::from(2);
         }
     };
+    let format = format.unwrap_or(scene.output.format);
+    if let Err(problems) = drape::output::check(format, &scene.output) {
+        eprintln!("drape: {} cannot be encoded as {}:", path.display(), format.name());
+        problems.iter().for_each(|fe| eprintln!("  {fe}"));
+        return ExitCode::from(2);
+    }
+    let format = format.for_fields(&scene.output.fields);
     let recording = execute(&scene.compile(), &Control::new());
     let written = match output {
-        Some(file) => std::fs::File::create(file)
-            .map(std::io::BufWriter::new)
-            .and_then(|mut w| drape::output::write_json(&recording, &mut w).and_then(|_| w.flush())),
+        Some(file) => std::fs::File::create(file).and_then(|file| encode(&recording, format, file)),
         None => {
-            let mut out = std::io::BufWriter::new(std::io::stdout().lock());
-            drape::output::write_json(&recording, &mut out)
-                .and_then(|_| writeln!(out))
+            let mut out = std::io::stdout().lock();
+            encode(&recording, format, &mut out)
+                .and_then(|_| if format == Format::Json { writeln!(out) } else { Ok(()) })
                 .and_then(|_| out.flush())
         }
     };

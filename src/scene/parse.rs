@@ -62,7 +62,10 @@ fn read_body(pointer: &str, mut value: Value) -> Result<Body, FieldError> {
     let kind = match object.remove("type") {
         Some(Value::String(kind)) => kind,
         Some(_) => {
-            return Err(FieldError::new(format!("{pointer}/type"), format!("must be a string: {BODY_TYPES}")));
+            return Err(FieldError::new(
+                format!("{pointer}/type"),
+                format!("must be a string: {BODY_TYPES}"),
+            ));
         }
         None => return Err(FieldError::new(format!("{pointer}/type"), format!("missing: {BODY_TYPES}"))),
     };

@@ -1,0 +1,337 @@
+//! glTF 2.0 binary (GLB), as the Khronos glTF 2.0 specification defines it: a 12-byte header,
+//! a JSON chunk and a BIN chunk, little-endian, every chunk padded to 4 bytes.
+//!
+//! Each body is one node and one mesh named after it. Its primitive holds the last recorded
+//! frame: `POSITION` (with the `min`/`max` the specification requires), and for a surface
+//! `NORMAL` and `indices` (triangles, mode 4); a chain, having no triangles, is a line strip
+//! (mode 3). Normals are the recording's when the run recorded them, otherwise computed here
+//! from the triangles; a vertex on no triangle (inside a lattice) is not drawn, but glTF wants
+//! unit normals, so it gets +y. With more than one frame, every frame is a morph target holding
+//! `POSITION` (and `NORMAL`, if recorded) deltas against the last frame, and an animation drives
+//! the mesh `weights` with one keyframe per frame time and `STEP` interpolation, so that at each
+//! frame's time exactly that frame's target shows, fully. three.js's `GLTFLoader` plays it as is.
+//!
+//! Floats are `f32`, as glTF requires: an `f64` run is rounded to the nearest `f32`. A delta is
+//! the exact difference rounded once to `f32`, so a frame shows within half an `f32` step of the
+//! delta's size. The BIN chunk is written straight from the recording; only the last frame of
+//! each body is held in `f32` while the header is built.
+
+use std::io::{self, Write};
+
+use serde_json::{Value, json};
+
+use super::surface::{body_range, body_triangles, body_vectors, vertex_normals};
+use crate::run::{Recording, Samples};
+use crate::scene::BodyInfo;
+
+const MAGIC: &[u8; 4] = b"glTF";
+const VERSION: u32 = 2;
+const CHUNK_JSON: u32 = 0x4E4F_534A;
+const CHUNK_BIN: u32 = 0x004E_4942;
+const ARRAY_BUFFER: u32 = 34962;
+const ELEMENT_ARRAY_BUFFER: u32 = 34963;
+const FLOAT: u32 = 5126;
+const UNSIGNED_INT: u32 = 5125;
+const MODE_LINE_STRIP: u32 = 3;
+const MODE_TRIANGLES: u32 = 4;
+/// The normal given to a vertex on no triangle, which glTF would otherwise refuse as non-unit.
+const UNDRAWN_NORMAL: [f32; 3] = [0.0, 1.0, 0.0];
+
+/// Writes `recording` as a GLB file. It needs positions and at least one frame.
+pub(super) fn write_glb<W: Write>(recording: &Recording, w: &mut W) -> io::Result<()> {
+    let positions = recording.frames.positions.as_ref().expect("checked by encode");
+    let normals = recording.frames.normals.as_ref();
+    let frames = recording.frames.len();
+    let last = frames - 1;
+    let animated = frames > 1;
+
+    let bodies: Vec<BodyPlan> =
+        recording.bodies.iter().map(|body| BodyPlan::new(recording, body, positions, normals)).collect();
+
+    let mut layout = Layout::default();
+    let mut nodes = Vec::new();
+    let mut meshes = Vec::new();
+    for (index, plan) in bodies.iter().enumerate() {
+        let body = plan.body;
+        let mut base = Bounds::default();
+        plan.base_positions.chunks_exact(3).for_each(|c| base.add([c[0], c[1], c[2]]));
+        let (min, max) = base.json();
+        let view = layout.view(12 * body.count, Some(ARRAY_BUFFER), None);
+        let mut attributes = json!({ "POSITION": layout.vec3(view, 0, body.count, Some((min, max))) });
+        if let Some(base_normals) = &plan.base_normals {
+            let view = layout.view(4 * base_normals.len(), Some(ARRAY_BUFFER), None);
+            attributes["NORMAL"] = layout.vec3(view, 0, body.count, None).into();
+        }
+        let mut primitive = json!({ "attributes": attributes, "mode": MODE_LINE_STRIP });
+        if !plan.triangles.is_empty() {
+            let view = layout.view(12 * plan.triangles.len(), Some(ELEMENT_ARRAY_BUFFER), None);
+            primitive["indices"] =
+                layout.accessor(view, 0, UNSIGNED_INT, 3 * plan.triangles.len(), "SCALAR", None).into();
+            primitive["mode"] = MODE_TRIANGLES.into();
+            primitive["material"] = 0.into();
+        }
+        let mut mesh = json!({ "name": body.name, "primitives": [primitive] });
+        if animated {
+            let frame_bytes = 12 * body.count;
+            let position_view = layout.view(frames * frame_bytes, Some(ARRAY_BUFFER), Some(12));
+            let mut targets: Vec<Value> = (0..frames)
+                .map(|k| {
+                    let mut deltas = Bounds::default();
+                    for_each_delta(positions, recording.particles, k, body, &plan.base_positions, |d| deltas.add(d));
+                    let (min, max) = deltas.json();
+                    json!({ "POSITION": layout.vec3(position_view, k * frame_bytes, body.count, Some((min, max))) })
+                })
+                .collect();
+            if let (Some(_), Some(_)) = (normals, &plan.base_normals) {
+                let normal_view = layout.view(frames * frame_bytes, Some(ARRAY_BUFFER), Some(12));
+                for (k, target) in targets.iter_mut().enumerate() {
+                    target["NORMAL"] = layout.vec3(normal_view, k * frame_bytes, body.count, None).into();
+                }
+            }
+            mesh["primitives"][0]["targets"] = targets.into();
+            mesh["weights"] = vec![0.0; frames].into();
+        }
+        meshes.push(mesh);
+        nodes.push(json!({ "name": body.name, "mesh": index }));
+    }
+
+    let mut document = json!({
+        "asset": { "version": "2.0", "generator": concat!("drape ", env!("CARGO_PKG_VERSION")) },
+        "scene": 0,
+        "scenes": [{ "nodes": (0..bodies.len()).collect::<Vec<_>>() }],
+        "nodes": nodes,
+        "meshes": meshes,
+        "materials": [{ "name": "cloth", "doubleSided": true,
+                        "pbrMetallicRoughness": { "metallicFactor": 0.0, "roughnessFactor": 0.8 } }],
+    });
+    let times: Vec<f32> = recording.frames.times.iter().map(|&t| t as f32).collect();
+    if animated {
+        let time_view = layout.view(4 * frames, None, None);
+        let (first, end) = (times[0], times[last]);
+        let input =
+            layout.accessor(time_view, 0, FLOAT, frames, "SCALAR", Some((json!([first]), json!([end]))));
+        let weight_view = layout.view(4 * frames * frames, None, None);
+        let output = layout.accessor(weight_view, 0, FLOAT, frames * frames, "SCALAR", None);
+        let channels: Vec<Value> = (0..bodies.len())
+            .map(|node| json!({ "sampler": 0, "target": { "node": node, "path": "weights" } }))
+            .collect();
+        document["animations"] = json!([{
+            "name": "motion",
+            "samplers": [{ "input": input, "output": output, "interpolation": "STEP" }],
+            "channels": channels,
+        }]);
+    }
+    if bodies.iter().all(|b| b.triangles.is_empty()) {
+        // Only triangle primitives use the material; the validator flags an unused one.
+        document.as_object_mut().expect("an object").remove("materials");
+    }
+    document["accessors"] = layout.accessors.into();
+    document["bufferViews"] = layout.views.into();
+    let bin_length = layout.length;
+    if bin_length > 0 {
+        document["buffers"] = json!([{ "byteLength": bin_length }]);
+    }
+
+    let mut json_chunk = serde_json::to_vec(&document).map_err(io::Error::other)?;
+    json_chunk.resize(json_chunk.len().next_multiple_of(4), b' ');
+    let total = 12 + 8 + json_chunk.len() + if bin_length > 0 { 8 + bin_length } else { 0 };
+    let total = u32::try_from(total).map_err(|_| {
+        io::Error::new(
+            io::ErrorKind::InvalidInput,
+            format!("{total} bytes is more than a GLB file can hold (4 GiB)"),
+        )
+    })?;
+    w.write_all(MAGIC)?;
+    w.write_all(&VERSION.to_le_bytes())?;
+    w.write_all(&total.to_le_bytes())?;
+    w.write_all(&(json_chunk.len() as u32).to_le_bytes())?;
+    w.write_all(&CHUNK_JSON.to_le_bytes())?;
+    w.write_all(&json_chunk)?;
+    if bin_length == 0 {
+        return Ok(());
+    }
+    w.write_all(&(bin_length as u32).to_le_bytes())?;
+    w.write_all(&CHUNK_BIN.to_le_bytes())?;
+
+    // The BIN chunk, in the order the views were laid out above.
+    let mut buffer = Vec::new();
+    for plan in &bodies {
+        let body = plan.body;
+        write_f32s(w, plan.base_positions.iter().copied())?;
+        if let Some(base_normals) = &plan.base_normals {
+            write_f32s(w, base_normals.iter().copied())?;
+        }
+        for triangle in &plan.triangles {
+            for index in triangle {
+                w.write_all(&index.to_le_bytes())?;
+            }
+        }
+        if animated {
+            for k in 0..frames {
+                buffer.clear();
+                for_each_delta(positions, recording.particles, k, body, &plan.base_positions, |d| {
+                    d.iter().for_each(|x| buffer.extend_from_slice(&x.to_le_bytes()))
+                });
+                w.write_all(&buffer)?;
+            }
+            if let (Some(normals), Some(base_normals)) = (normals, &plan.base_normals) {
+                for k in 0..frames {
+                    let shown =
+                        body_vectors(normals, recording.particles, k, body).into_iter().map(shown_normal);
+                    let deltas = shown
+                        .zip(base_normals.chunks_exact(3))
+                        .map(|(n, base)| [0, 1, 2].map(|a| (f64::from(n[a]) - f64::from(base[a])) as f32));
+                    write_f32s(w, deltas.flatten())?;
+                }
+            }
+        }
+    }
+    if animated {
+        write_f32s(w, times.iter().copied())?;
+        for k in 0..frames {
+            write_f32s(w, (0..frames).map(|target| if target == k { 1.0 } else { 0.0 }))?;
+        }
+    }
+    Ok(())
+}
+
+/// What one body contributes: its last frame in `f32`, its normals and its re-based triangles.
+struct BodyPlan<'a> {
+    body: &'a BodyInfo,
+    base_positions: Vec<f32>,
+    /// Present for a body with triangles.
+    base_normals: Option<Vec<f32>>,
+    triangles: Vec<[u32; 3]>,
+}
+
+impl<'a> BodyPlan<'a> {
+    fn new(
+        recording: &Recording,
+        body: &'a BodyInfo,
+        positions: &Samples,
+        normals: Option<&Samples>,
+    ) -> Self {
+        let last = recording.frames.len() - 1;
+        let base_positions = to_f32(positions, body_range(recording.particles, last, body));
+        let triangles = body_triangles(recording, body);
+        let base_normals = (!triangles.is_empty()).then(|| {
+            let vectors = match normals {
+                Some(normals) => body_vectors(normals, recording.particles, last, body),
+                None => vertex_normals(&body_vectors(positions, recording.particles, last, body), &triangles),
+            };
+            vectors.into_iter().flat_map(shown_normal).collect()
+        });
+        Self { body, base_positions, base_normals, triangles }
+    }
+}
+
+/// A normal as glTF shows it: in `f32`, and unit even where the surface gave none.
+fn shown_normal(n: [f64; 3]) -> [f32; 3] {
+    if n == [0.0; 3] { UNDRAWN_NORMAL } else { n.map(|x| x as f32) }
+}
+
+/// Calls `f` with each `f32` position delta of `body` in frame `k` against its base positions:
+/// the exact difference, rounded once.
+fn for_each_delta(
+    positions: &Samples,
+    particles: usize,
+    k: usize,
+    body: &BodyInfo,
+    base: &[f32],
+    f: impl FnMut([f32; 3]),
+) {
+    fn each<T: Copy + Into<f64>>(values: &[T], base: &[f32], mut f: impl FnMut([f32; 3])) {
+        for (x, b) in values.chunks_exact(3).zip(base.chunks_exact(3)) {
+            f([0, 1, 2].map(|a| (x[a].into() - f64::from(b[a])) as f32));
+        }
+    }
+    let range = body_range(particles, k, body);
+    match positions {
+        Samples::F32(v) => each(&v[range], base, f),
+        Samples::F64(v) => each(&v[range], base, f),
+    }
+}
+
+fn to_f32(samples: &Samples, range: std::ops::Range<usize>) -> Vec<f32> {
+    match samples {
+        Samples::F32(v) => v[range].to_vec(),
+        Samples::F64(v) => v[range].iter().map(|&x| x as f32).collect(),
+    }
+}
+
+/// Component-wise minimum and maximum, for an accessor's `min` and `max`.
+struct Bounds {
+    min: [f32; 3],
+    max: [f32; 3],
+}
+
+impl Default for Bounds {
+    fn default() -> Self {
+        Self { min: [f32::INFINITY; 3], max: [f32::NEG_INFINITY; 3] }
+    }
+}
+
+impl Bounds {
+    fn add(&mut self, v: [f32; 3]) {
+        self.min = [0, 1, 2].map(|a| self.min[a].min(v[a]));
+        self.max = [0, 1, 2].map(|a| self.max[a].max(v[a]));
+    }
+
+    fn json(&self) -> (Value, Value) {
+        (json!(self.min), json!(self.max))
+    }
+}
+
+fn write_f32s<W: Write>(w: &mut W, values: impl Iterator<Item = f32>) -> io::Result<()> {
+    for x in values {
+        w.write_all(&x.to_le_bytes())?;
+    }
+    Ok(())
+}
+
+/// The buffer views and accessors, laid out in the order the BIN chunk is written.
+#[derive(Default)]
+struct Layout {
+    views: Vec<Value>,
+    accessors: Vec<Value>,
+    length: usize,
+}
+
+impl Layout {
+    /// A view of the next `length` bytes (a multiple of 4, so every view stays aligned).
+    fn view(&mut self, length: usize, target: Option<u32>, stride: Option<usize>) -> usize {
+        debug_assert_eq!(length % 4, 0);
+        let mut view = json!({ "buffer": 0, "byteOffset": self.length, "byteLength": length });
+        if let Some(target) = target {
+            view["target"] = target.into();
+        }
+        if let Some(stride) = stride {
+            view["byteStride"] = stride.into();
+        }
+        self.views.push(view);
+        self.length += length;
+        self.views.len() - 1
+    }
+
+    fn accessor(
+        &mut self,
+        view: usize,
+        offset: usize,
+        component: u32,
+        count: usize,
+        kind: &str,
+        bounds: Option<(Value, Value)>,
+    ) -> usize {
+        let mut accessor = json!({ "bufferView": view, "byteOffset": offset, "componentType": component, "count": count, "type": kind });
+        if let Some((min, max)) = bounds {
+            accessor["min"] = min;
+            accessor["max"] = max;
+        }
+        self.accessors.push(accessor);
+        self.accessors.len() - 1
+    }
+
+    fn vec3(&mut self, view: usize, offset: usize, count: usize, bounds: Option<(Value, Value)>) -> usize {
+        self.accessor(view, offset, FLOAT, count, "VEC3", bounds)
+    }
+}
