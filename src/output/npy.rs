@@ -274,9 +274,10 @@ mod tests {
         let times = [0.0, 0.5];
         let array = Array { name: "times", shape: vec![2], data: Data::F64(&times) };
         let header = array.header();
-        assert_eq!(header.len(), 64);
+        // 10 bytes of preamble and 58 of dict plus a newline: padded to 128.
+        assert_eq!(header.len(), 128);
         assert_eq!(&header[..8], b"\x93NUMPY\x01\x00");
-        assert_eq!(u16::from_le_bytes([header[8], header[9]]), 54);
+        assert_eq!(u16::from_le_bytes([header[8], header[9]]), 118);
         let dict = std::str::from_utf8(&header[10..]).unwrap();
         assert_eq!(dict.trim_end(), "{'descr': '<f8', 'fortran_order': False, 'shape': (2,), }");
         assert!(dict.ends_with('\n'));

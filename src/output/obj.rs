@@ -23,6 +23,8 @@ pub(super) fn write_obj<W: Write>(recording: &Recording, w: &mut W) -> io::Resul
         recording.particles,
         recording.frames.times[last]
     )?;
+    // `f v//vn` indices count over the whole file; chains have vertices but no normals.
+    let mut normals_written = 0;
     for body in &recording.bodies {
         writeln!(w, "o {}", body.name.replace(char::is_whitespace, "_"))?;
         let range = body_range(recording.particles, last, body);
@@ -49,8 +51,10 @@ pub(super) fn write_obj<W: Write>(recording: &Recording, w: &mut W) -> io::Resul
         }
         for triangle in triangles {
             let [a, b, c] = triangle.map(|i| i as usize + first);
-            writeln!(w, "f {a}//{a} {b}//{b} {c}//{c}")?;
+            let [na, nb, nc] = triangle.map(|i| i as usize + normals_written + 1);
+            writeln!(w, "f {a}//{na} {b}//{nb} {c}//{nc}")?;
         }
+        normals_written += body.count;
     }
     Ok(())
 }
