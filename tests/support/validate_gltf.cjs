@@ -12,7 +12,7 @@ try {
     try {
         validator = require("gltf-validator");
     } catch (e2) {
-        console.error("gltf-validator is not installed: npm install --prefix .ci/node gltf-validator");
+        console.error("gltf-validator is not installed: npm ci --prefix .ci/node");
         process.exit(2);
     }
 }
