@@ -39,142 +39,115 @@ const UNDRAWN_NORMAL: [f32; 3] = [0.0, 1.0, 0.0];
 
 /// Writes `recording` as a GLB file. It needs positions and at least one frame.
 pub(super) fn write_glb<W: Write>(recording: &Recording, w: &mut W) -> io::Result<()> {
-    let positions = recording.frames.positions.as_ref().expect("checked by encode");
-    let normals = recording.frames.normals.as_ref();
-    let frames = recording.frames.len();
-    let last = frames - 1;
-    let animated = frames > 1;
-
-    let bodies: Vec<BodyPlan> =
-        recording.bodies.iter().map(|body| BodyPlan::new(recording, body, positions, normals)).collect();
-
-    let mut layout = Layout::default();
-    let mut nodes = Vec::new();
-    let mut meshes = Vec::new();
-    for (index, plan) in bodies.iter().enumerate() {
-        let body = plan.body;
-        let mut base = Bounds::default();
-        plan.base_positions.chunks_exact(3).for_each(|c| base.add([c[0], c[1], c[2]]));
-        let (min, max) = base.json();
-        let view = layout.view(12 * body.count, Some(ARRAY_BUFFER), None);
-        let mut attributes = json!({ "POSITION": layout.vec3(view, 0, body.count, Some((min, max))) });
-        if let Some(base_normals) = &plan.base_normals {
-            let view = layout.view(4 * base_normals.len(), Some(ARRAY_BUFFER), None);
-            attributes["NORMAL"] = layout.vec3(view, 0, body.count, None).into();
-        }
-        let mut primitive = json!({ "attributes": attributes, "mode": MODE_LINE_STRIP });
-        if !plan.triangles.is_empty() {
-            let view = layout.view(12 * plan.triangles.len(), Some(ELEMENT_ARRAY_BUFFER), None);
-            primitive["indices"] =
-                layout.accessor(view, 0, UNSIGNED_INT, 3 * plan.triangles.len(), "SCALAR", None).into();
-            primitive["mode"] = MODE_TRIANGLES.into();
-            primitive["material"] = 0.into();
-        }
-        let mut mesh = json!({ "name": body.name, "primitives": [primitive] });
-        if animated {
-            let frame_bytes = 12 * body.count;
-            let position_view = layout.view(frames * frame_bytes, Some(ARRAY_BUFFER), Some(12));
-            let mut targets: Vec<Value> = (0..frames)
-                .map(|k| {
-                    let mut deltas = Bounds::default();
-                    for_each_delta(positions, recording.particles, k, body, &plan.base_positions, |d| deltas.add(d));
-                    let (min, max) = deltas.json();
-                    json!({ "POSITION": layout.vec3(position_view, k * frame_bytes, body.count, Some((min, max))) })
-                })
-                .collect();
-            if let (Some(_), Some(_)) = (normals, &plan.base_normals) {
-                let normal_view = layout.view(frames * frame_bytes, Some(ARRAY_BUFFER), Some(12));
-                for (k, target) in targets.iter_mut().enumerate() {
-                    target["NORMAL"] = layout.vec3(normal_view, k * frame_bytes, body.count, None).into();
-                }
-            }
-            mesh["primitives"][0]["targets"] = targets.into();
-            mesh["weights"] = vec![0.0; frames].into();
-        }
-        meshes.push(mesh);
-        nodes.push(json!({ "name": body.name, "mesh": index }));
-    }
-
-    let mut document = json!({
-        "asset": { "version": "2.0", "generator": concat!("drape ", env!("CARGO_PKG_VERSION")) },
-        "scene": 0,
-        "scenes": [{ "nodes": (0..bodies.len()).collect::<Vec<_>>() }],
-        "nodes": nodes,
-        "meshes": meshes,
-        "materials": [{ "name": "cloth", "doubleSided": true,
-                        "pbrMetallicRoughness": { "metallicFactor": 0.0, "roughnessFactor": 0.8 } }],
-    });
-    let times: Vec<f32> = recording.frames.times.iter().map(|&t| t as f32).collect();
-    if animated {
-        let time_view = layout.view(4 * frames, None, None);
-        let (first, end) = (times[0], times[last]);
-        let input =
-            layout.accessor(time_view, 0, FLOAT, frames, "SCALAR", Some((json!([first]), json!([end]))));
-        let weight_view = layout.view(4 * frames * frames, None, None);
-        let output = layout.accessor(weight_view, 0, FLOAT, frames * frames, "SCALAR", None);
-        let channels: Vec<Value> = (0..bodies.len())
-            .map(|node| json!({ "sampler": 0, "target": { "node": node, "path": "weights" } }))
-            .collect();
-        document["animations"] = json!([{
-            "name": "motion",
-            "samplers": [{ "input": input, "output": output, "interpolation": "STEP" }],
-            "channels": channels,
-        }]);
-    }
-    if bodies.iter().all(|b| b.triangles.is_empty()) {
-        // Only triangle primitives use the material; the validator flags an unused one.
-        document.as_object_mut().expect("an object").remove("materials");
-    }
-    document["accessors"] = layout.accessors.into();
-    document["bufferViews"] = layout.views.into();
-    let bin_length = layout.length;
-    if bin_length > 0 {
-        document["buffers"] = json!([{ "byteLength": bin_length }]);
-    }
-
-    let mut json_chunk = serde_json::to_vec(&document).map_err(io::Error::other)?;
+    let glb = Glb::plan(recording);
+    let mut json_chunk = serde_json::to_vec(&glb.document).map_err(io::Error::other)?;
     json_chunk.resize(json_chunk.len().next_multiple_of(4), b' ');
-    let total = 12 + 8 + json_chunk.len() + if bin_length > 0 { 8 + bin_length } else { 0 };
-    let total = u32::try_from(total).map_err(|_| {
+    let bin_length = glb.layout_length;
+    let total = 12 + 8 + json_chunk.len() + 8 + bin_length;
+    let too_large = || {
         io::Error::new(
             io::ErrorKind::InvalidInput,
             format!("{total} bytes is more than a GLB file can hold (4 GiB)"),
         )
-    })?;
+    };
+    let total = u32::try_from(total).map_err(|_| too_large())?;
     w.write_all(MAGIC)?;
     w.write_all(&VERSION.to_le_bytes())?;
     w.write_all(&total.to_le_bytes())?;
     w.write_all(&(json_chunk.len() as u32).to_le_bytes())?;
     w.write_all(&CHUNK_JSON.to_le_bytes())?;
     w.write_all(&json_chunk)?;
-    if bin_length == 0 {
-        return Ok(());
-    }
     w.write_all(&(bin_length as u32).to_le_bytes())?;
     w.write_all(&CHUNK_BIN.to_le_bytes())?;
+    glb.write_bin(w)
+}
 
-    // The BIN chunk, in the order the views were laid out above.
-    let mut buffer = Vec::new();
-    for plan in &bodies {
-        let body = plan.body;
-        write_f32s(w, plan.base_positions.iter().copied())?;
-        if let Some(base_normals) = &plan.base_normals {
-            write_f32s(w, base_normals.iter().copied())?;
+/// A GLB file planned: its JSON document, and what to write into its BIN chunk in what order.
+struct Glb<'a> {
+    recording: &'a Recording,
+    positions: &'a Samples,
+    normals: Option<&'a Samples>,
+    bodies: Vec<BodyPlan<'a>>,
+    times: Vec<f32>,
+    document: Value,
+    layout_length: usize,
+}
+
+impl<'a> Glb<'a> {
+    /// Lays out the BIN chunk (body by body: base positions, normals, indices, then the targets;
+    /// then the animation's times and weights) and describes it in the JSON document. Reads the
+    /// frames once, for the targets' bounds.
+    fn plan(recording: &'a Recording) -> Self {
+        let positions = recording.frames.positions.as_ref().expect("checked by encode");
+        let normals = recording.frames.normals.as_ref();
+        let frames = recording.frames.len();
+        let bodies: Vec<BodyPlan> =
+            recording.bodies.iter().map(|body| BodyPlan::new(recording, body, positions, normals)).collect();
+        let mut layout = Layout::default();
+        let meshes: Vec<Value> =
+            bodies.iter().map(|plan| plan.mesh(&mut layout, recording, positions, normals)).collect();
+        let nodes: Vec<Value> = bodies
+            .iter()
+            .enumerate()
+            .map(|(index, plan)| json!({ "name": plan.body.name, "mesh": index }))
+            .collect();
+        let mut document = json!({
+            "asset": { "version": "2.0", "generator": concat!("drape ", env!("CARGO_PKG_VERSION")) },
+            "scene": 0,
+            "scenes": [{ "nodes": (0..bodies.len()).collect::<Vec<_>>() }],
+            "nodes": nodes,
+            "meshes": meshes,
+        });
+        if bodies.iter().any(|b| !b.triangles.is_empty()) {
+            // Only triangle primitives use it; the validator flags an unused material.
+            document["materials"] = json!([{ "name": "cloth", "doubleSided": true,
+                "pbrMetallicRoughness": { "metallicFactor": 0.0, "roughnessFactor": 0.8 } }]);
         }
-        for triangle in &plan.triangles {
-            for index in triangle {
-                w.write_all(&index.to_le_bytes())?;
+        let times: Vec<f32> = recording.frames.times.iter().map(|&t| t as f32).collect();
+        if frames > 1 {
+            let time_view = layout.view(4 * frames, None, None);
+            let bounds = (json!([times[0]]), json!([times[frames - 1]]));
+            let input = layout.accessor(time_view, 0, FLOAT, frames, "SCALAR", Some(bounds));
+            let weight_view = layout.view(4 * frames * frames, None, None);
+            let output = layout.accessor(weight_view, 0, FLOAT, frames * frames, "SCALAR", None);
+            let channels: Vec<Value> = (0..bodies.len())
+                .map(|node| json!({ "sampler": 0, "target": { "node": node, "path": "weights" } }))
+                .collect();
+            document["animations"] = json!([{
+                "name": "motion",
+                "samplers": [{ "input": input, "output": output, "interpolation": "STEP" }],
+                "channels": channels,
+            }]);
+        }
+        let layout_length = layout.length;
+        document["accessors"] = layout.accessors.into();
+        document["bufferViews"] = layout.views.into();
+        document["buffers"] = json!([{ "byteLength": layout_length }]);
+        Self { recording, positions, normals, bodies, times, document, layout_length }
+    }
+
+    /// The BIN chunk, in the order [`Glb::plan`] laid it out.
+    fn write_bin<W: Write>(&self, w: &mut W) -> io::Result<()> {
+        let (recording, frames) = (self.recording, self.recording.frames.len());
+        let mut buffer = Vec::new();
+        for plan in &self.bodies {
+            let body = plan.body;
+            write_f32s(w, plan.base_positions.iter().copied())?;
+            if let Some(base_normals) = &plan.base_normals {
+                write_f32s(w, base_normals.iter().copied())?;
             }
-        }
-        if animated {
+            plan.triangles.iter().flatten().try_for_each(|index| w.write_all(&index.to_le_bytes()))?;
+            if frames == 1 {
+                continue;
+            }
             for k in 0..frames {
                 buffer.clear();
-                for_each_delta(positions, recording.particles, k, body, &plan.base_positions, |d| {
+                for_each_delta(self.positions, recording.particles, k, body, &plan.base_positions, |d| {
                     d.iter().for_each(|x| buffer.extend_from_slice(&x.to_le_bytes()))
                 });
                 w.write_all(&buffer)?;
             }
-            if let (Some(normals), Some(base_normals)) = (normals, &plan.base_normals) {
+            if let (Some(normals), Some(base_normals)) = (self.normals, &plan.base_normals) {
                 for k in 0..frames {
                     let shown =
                         body_vectors(normals, recording.particles, k, body).into_iter().map(shown_normal);
@@ -185,14 +158,14 @@ pub(super) fn write_glb<W: Write>(recording: &Recording, w: &mut W) -> io::Resul
                 }
             }
         }
-    }
-    if animated {
-        write_f32s(w, times.iter().copied())?;
-        for k in 0..frames {
-            write_f32s(w, (0..frames).map(|target| if target == k { 1.0 } else { 0.0 }))?;
+        if frames > 1 {
+            write_f32s(w, self.times.iter().copied())?;
+            for k in 0..frames {
+                write_f32s(w, (0..frames).map(|target| if target == k { 1.0 } else { 0.0 }))?;
+            }
         }
+        Ok(())
     }
-    Ok(())
 }
 
 /// What one body contributes: its last frame in `f32`, its normals and its re-based triangles.
@@ -222,6 +195,59 @@ impl<'a> BodyPlan<'a> {
             vectors.into_iter().flat_map(shown_normal).collect()
         });
         Self { body, base_positions, base_normals, triangles }
+    }
+}
+
+impl BodyPlan<'_> {
+    /// The body's mesh: one primitive of its last frame and, with several frames, one morph
+    /// target per frame. Lays out the views it uses.
+    fn mesh(
+        &self,
+        layout: &mut Layout,
+        recording: &Recording,
+        positions: &Samples,
+        normals: Option<&Samples>,
+    ) -> Value {
+        let (body, frames) = (self.body, recording.frames.len());
+        let mut base = Bounds::default();
+        self.base_positions.chunks_exact(3).for_each(|c| base.add([c[0], c[1], c[2]]));
+        let view = layout.view(12 * body.count, Some(ARRAY_BUFFER), None);
+        let mut attributes = json!({ "POSITION": layout.vec3(view, 0, body.count, Some(base.json())) });
+        if self.base_normals.is_some() {
+            let view = layout.view(12 * body.count, Some(ARRAY_BUFFER), None);
+            attributes["NORMAL"] = layout.vec3(view, 0, body.count, None).into();
+        }
+        let mut primitive = json!({ "attributes": attributes, "mode": MODE_LINE_STRIP });
+        if !self.triangles.is_empty() {
+            let view = layout.view(12 * self.triangles.len(), Some(ELEMENT_ARRAY_BUFFER), None);
+            let count = 3 * self.triangles.len();
+            primitive["indices"] = layout.accessor(view, 0, UNSIGNED_INT, count, "SCALAR", None).into();
+            primitive["mode"] = MODE_TRIANGLES.into();
+            primitive["material"] = 0.into();
+        }
+        let mut mesh = json!({ "name": body.name, "primitives": [primitive] });
+        if frames == 1 {
+            return mesh;
+        }
+        let frame_bytes = 12 * body.count;
+        // Targets share a view, so it needs a stride (glTF 2.0 §3.6.2.4).
+        let position_view = layout.view(frames * frame_bytes, Some(ARRAY_BUFFER), Some(12));
+        let mut targets: Vec<Value> = (0..frames)
+            .map(|k| {
+                let mut deltas = Bounds::default();
+                for_each_delta(positions, recording.particles, k, body, &self.base_positions, |d| deltas.add(d));
+                json!({ "POSITION": layout.vec3(position_view, k * frame_bytes, body.count, Some(deltas.json())) })
+            })
+            .collect();
+        if normals.is_some() && self.base_normals.is_some() {
+            let normal_view = layout.view(frames * frame_bytes, Some(ARRAY_BUFFER), Some(12));
+            for (k, target) in targets.iter_mut().enumerate() {
+                target["NORMAL"] = layout.vec3(normal_view, k * frame_bytes, body.count, None).into();
+            }
+        }
+        mesh["primitives"][0]["targets"] = targets.into();
+        mesh["weights"] = vec![0.0; frames].into();
+        mesh
     }
 }
 
