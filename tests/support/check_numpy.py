@@ -6,6 +6,7 @@ Exits non-zero with a message on the first difference.
 """
 import json
 import sys
+import zipfile
 
 import numpy as np
 
@@ -31,6 +32,10 @@ def main(json_path, npy_path, npz_path):
     vectors = (len(frames), particles, 3)
     same("npy positions", np.load(npy_path), [f["positions"] for f in frames], dtype, vectors)
 
+    with zipfile.ZipFile(npz_path) as z:
+        assert z.testzip() is None, "an NPZ entry fails its CRC-32"
+        stored = all(i.compress_type == zipfile.ZIP_STORED for i in z.infolist())
+        assert stored, "NPZ entries are stored"
     archive = np.load(npz_path)
     present = sorted(k for k in ["positions", "velocities", "normals", "energy", "strain"] if k in frames[0])
     assert sorted(archive.files) == sorted(present + ["times"]), f"npz holds {archive.files}, expected {present}"
