@@ -9,7 +9,8 @@
 //! unit normals, so it gets +y. With more than one frame, every frame is a morph target holding
 //! `POSITION` (and `NORMAL`, if recorded) deltas against the last frame, and an animation drives
 //! the mesh `weights` with one keyframe per frame time and `STEP` interpolation, so that at each
-//! frame's time exactly that frame's target shows, fully. three.js's `GLTFLoader` plays it as is.
+//! frame's time exactly that frame's target shows, fully (the weights are a sparse accessor: one
+//! 1 per keyframe over zeros). three.js's `GLTFLoader` plays it as is.
 //!
 //! Floats are `f32`, as glTF requires: an `f64` run is rounded to the nearest `f32`. A delta is
 //! the exact difference rounded once to `f32`, so a frame shows within half an `f32` step of the
@@ -108,8 +109,17 @@ impl<'a> Glb<'a> {
             let time_view = layout.view(4 * frames, None, None);
             let bounds = (json!([times[0]]), json!([times[frames - 1]]));
             let input = layout.accessor(time_view, 0, FLOAT, frames, "SCALAR", Some(bounds));
-            let weight_view = layout.view(4 * frames * frames, None, None);
-            let output = layout.accessor(weight_view, 0, FLOAT, frames * frames, "SCALAR", None);
+            // Keyframe k's weights are zero but for target k: a sparse accessor over zeros
+            // holds just the F ones, where a dense one would hold F² floats.
+            let one_indices = layout.view(4 * frames, None, None);
+            let ones = layout.view(4 * frames, None, None);
+            layout.accessors.push(json!({
+                "componentType": FLOAT, "count": frames * frames, "type": "SCALAR",
+                "sparse": { "count": frames,
+                            "indices": { "bufferView": one_indices, "componentType": UNSIGNED_INT },
+                            "values": { "bufferView": ones } },
+            }));
+            let output = layout.accessors.len() - 1;
             let channels: Vec<Value> = (0..bodies.len())
                 .map(|node| json!({ "sampler": 0, "target": { "node": node, "path": "weights" } }))
                 .collect();
@@ -160,9 +170,8 @@ impl<'a> Glb<'a> {
         }
         if frames > 1 {
             write_f32s(w, self.times.iter().copied())?;
-            for k in 0..frames {
-                write_f32s(w, (0..frames).map(|target| if target == k { 1.0 } else { 0.0 }))?;
-            }
+            (0..frames).try_for_each(|k| w.write_all(&((k * frames + k) as u32).to_le_bytes()))?;
+            write_f32s(w, (0..frames).map(|_| 1.0))?;
         }
         Ok(())
     }
