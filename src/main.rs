@@ -6,6 +6,7 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
+use drape::output::{Format, encode};
 use drape::run::{Control, execute};
 use drape::scene::Scene;
 use drape::sweep::{Sweep, run_locally, write_csv, write_svg};
@@ -27,6 +28,10 @@ enum Command {
         /// Write the result here instead of standard output.
         #[arg(short, long)]
         output: Option<PathBuf>,
+        /// Encode the result as json, glb, obj, npy, npz or pc2 (default: the scene's
+        /// `output.format`). npy becomes npz when the scene asks for more than positions.
+        #[arg(short, long)]
+        format: Option<Format>,
     },
     /// Runs every variant of a sweep and prints its table (JSON, or CSV with --csv).
     Sweep {
@@ -49,7 +54,7 @@ enum Command {
 
 fn main() -> ExitCode {
     match Cli::parse().command {
-        Command::Run { scene, output } => run(&scene, output.as_deref()),
+        Command::Run { scene, output, format } => run(&scene, output.as_deref(), format),
         Command::Sweep { sweep, csv, plot, threads, max_variants } => {
             let threads =
                 threads.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
@@ -112,7 +117,7 @@ fn run_sweep(path: &Path, csv: bool, plot: Option<&Path>, threads: usize, max_va
     }
 }
 
-fn run(path: &Path, output: Option<&Path>) -> ExitCode {
+fn run(path: &Path, output: Option<&Path>, format: Option<Format>) -> ExitCode {
     let text = match read_input(path) {
         Ok(text) => text,
         Err(code) => return code,
@@ -128,15 +133,22 @@ fn run(path: &Path, output: Option<&Path>) -> ExitCode {
             return ExitCode::from(2);
         }
     };
+    let format = format.unwrap_or(scene.output.format);
+    if let Err(problems) = drape::output::check(format, &scene.output) {
+        eprintln!("drape: {} cannot be encoded as {}:", path.display(), format.name());
+        problems.iter().for_each(|fe| eprintln!("  {fe}"));
+        return ExitCode::from(2);
+    }
+    let format = format.for_fields(&scene.output.fields);
     let recording = execute(&scene.compile(), &Control::new());
     let written = match output {
         Some(file) => std::fs::File::create(file)
             .map(std::io::BufWriter::new)
-            .and_then(|mut w| drape::output::write_json(&recording, &mut w).and_then(|_| w.flush())),
+            .and_then(|mut w| encode(&recording, format, &mut w).and_then(|_| w.flush())),
         None => {
             let mut out = std::io::BufWriter::new(std::io::stdout().lock());
-            drape::output::write_json(&recording, &mut out)
-                .and_then(|_| writeln!(out))
+            encode(&recording, format, &mut out)
+                .and_then(|_| if format == Format::Json { writeln!(out) } else { Ok(()) })
                 .and_then(|_| out.flush())
         }
     };

@@ -470,11 +470,81 @@ pub enum Field {
     Strain,
 }
 
-/// Encodings of a result.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize)]
+impl Field {
+    /// Every field, in the order results list them.
+    pub const ALL: [Field; 5] =
+        [Field::Positions, Field::Velocities, Field::Normals, Field::Energy, Field::Strain];
+
+    /// The name the contract uses.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Positions => "positions",
+            Self::Velocities => "velocities",
+            Self::Normals => "normals",
+            Self::Energy => "energy",
+            Self::Strain => "strain",
+        }
+    }
+}
+
+/// Encodings of a result, and the fields each can carry.
+///
+/// JSON carries everything. The mesh formats (glTF binary, OBJ) carry positions and normals; NPY
+/// is one array of positions, NPZ one array per field; PC2 is a point cache of positions. Every
+/// format but JSON and NPZ needs positions, and every format but JSON needs a frame to encode.
+/// Media types and the negotiation with a client live in `output::format`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Format {
     /// JSON (the default).
     #[default]
     Json,
+    /// glTF 2.0 binary: one node and mesh per body, the motion as morph targets.
+    Glb,
+    /// Wavefront OBJ: the last frame's mesh.
+    Obj,
+    /// A NumPy array of positions, frames × particles × 3. With more fields asked, NPZ.
+    Npy,
+    /// A NumPy archive: one array per field, plus `times`.
+    Npz,
+    /// A PC2 point cache of positions.
+    Pc2,
+}
+
+impl Format {
+    /// Every format, in the order the contract lists them.
+    pub const ALL: [Format; 6] =
+        [Format::Json, Format::Glb, Format::Obj, Format::Npy, Format::Npz, Format::Pc2];
+
+    /// The name the contract uses (`output.format`, `?format=`, `--format`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Json => "json",
+            Self::Glb => "glb",
+            Self::Obj => "obj",
+            Self::Npy => "npy",
+            Self::Npz => "npz",
+            Self::Pc2 => "pc2",
+        }
+    }
+
+    /// Whether this format can carry `field`.
+    pub fn carries(self, field: Field) -> bool {
+        match self {
+            Self::Json | Self::Npz => true,
+            Self::Glb | Self::Obj => matches!(field, Field::Positions | Field::Normals),
+            Self::Npy | Self::Pc2 => field == Field::Positions,
+        }
+    }
+
+    /// Whether this format has nothing to say without positions.
+    pub fn needs_positions(self) -> bool {
+        !matches!(self, Self::Json | Self::Npz)
+    }
+
+    /// The format actually sent for `fields`: NPY becomes NPZ when more than positions are asked;
+    /// every other format stays as it is.
+    pub fn for_fields(self, fields: &[Field]) -> Format {
+        if self == Self::Npy && fields.iter().any(|&f| f != Field::Positions) { Self::Npz } else { self }
+    }
 }

@@ -2,7 +2,7 @@
 //! indices in range.
 
 use super::error::FieldError;
-use super::types::{Body, GridSprings, Scene, SpringSpec};
+use super::types::{Body, Field, Format, FrameSelection, GridSprings, Output, Scene, SpringSpec};
 
 /// Collects problems, each at its JSON Pointer.
 struct Problems(Vec<FieldError>);
@@ -120,7 +120,46 @@ impl Scene {
                 p.add(format!("/output/fields/{i}"), "listed twice");
             }
         }
+        p.0.extend(self.output.format_problems(self.output.format));
         p.0
+    }
+}
+
+impl Output {
+    /// Why this output cannot be encoded as `format`, each problem at its JSON Pointer: a field
+    /// asked for that the format cannot carry (at `/output/fields/i`), positions missing where
+    /// the format needs them, or no frame to encode. Empty when it can.
+    pub fn format_problems(&self, format: Format) -> Vec<FieldError> {
+        let sent = format.for_fields(&self.fields);
+        let mut problems = Vec::new();
+        for (i, &field) in self.fields.iter().enumerate() {
+            if !sent.carries(field) {
+                let carriers: Vec<&str> =
+                    Format::ALL.iter().filter(|f| f.carries(field)).map(|f| f.name()).collect();
+                problems.push(FieldError::new(
+                    format!("/output/fields/{i}"),
+                    format!(
+                        "format {} cannot carry {}; {} can",
+                        format.name(),
+                        field.name(),
+                        carriers.join(", ")
+                    ),
+                ));
+            }
+        }
+        if sent.needs_positions() && !self.fields.contains(&Field::Positions) {
+            problems.push(FieldError::new(
+                "/output/fields",
+                format!("format {} needs positions among the fields", format.name()),
+            ));
+        }
+        if format != Format::Json && self.frames == FrameSelection::None {
+            problems.push(FieldError::new(
+                "/output/frames",
+                format!("format {} needs a frame to encode; frames none keeps none", format.name()),
+            ));
+        }
+        problems
     }
 }
 
