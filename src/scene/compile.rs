@@ -127,6 +127,10 @@ impl Scene {
             dt: self.duration / steps as f64,
             gravity: DVec3::from_array(self.gravity),
             drag: self.drag,
+            wind: None,
+            colliders: Vec::new(),
+            strain_limit: None,
+            self_collision: None,
         };
         Compiled {
             model,
