@@ -10,7 +10,8 @@
 use glam::DVec3;
 
 use super::types::{
-    Body, ColliderSpec, IntegratorName, OrientationName, Output, Precision, Scene, SpringSpec, WindModelName, WindSpec,
+    Body, ColliderSpec, IntegratorName, OrientationName, Output, Precision, Scene, SpringSpec, WindModelName,
+    WindSpec,
 };
 use crate::solver::{self, Collider, IntegratorKind, IntegratorSettings, Model, Shape, SpringParams};
 
@@ -166,7 +167,9 @@ fn collider(spec: &ColliderSpec) -> Collider {
         ColliderSpec::Plane(c) => Shape::Plane { point: v(c.point), normal: v(c.normal) },
         ColliderSpec::Sphere(c) => Shape::Sphere { center: v(c.center), radius: c.radius },
         ColliderSpec::Box(c) => Shape::Box { center: v(c.center), half_extents: v(c.half_extents) },
-        ColliderSpec::Cylinder(c) => Shape::Cylinder { center: v(c.center), radius: c.radius, height: c.height },
+        ColliderSpec::Cylinder(c) => {
+            Shape::Cylinder { center: v(c.center), radius: c.radius, height: c.height }
+        }
     };
     let (friction, restitution) = spec.surface();
     Collider { shape, friction, restitution }

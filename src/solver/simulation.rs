@@ -136,7 +136,8 @@ impl<T: Real> Simulation<T> {
         let inverse_masses = &self.dynamics.inverse_masses;
         let mut moved = false;
         if let Some(limit) = &mut self.strain_limit {
-            moved |= limit.apply(&mut self.state, &self.dynamics.springs, inverse_masses, self.h);
+            let contacts = self.contacts.as_ref();
+            moved |= limit.apply(&mut self.state, &self.dynamics.springs, inverse_masses, contacts, self.h);
         }
         if let Some(self_collision) = &mut self.self_collision {
             moved |= self_collision.resolve(&mut self.state, inverse_masses);

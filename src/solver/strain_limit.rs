@@ -11,12 +11,18 @@
 //! excess can only leave through free ends.
 //! A particle moved by `Δx` gets `Δx / h` added to its velocity, the velocity that would have
 //! brought it there, so that the state stays consistent.
+//!
+//! With colliders, shortening springs can pull particles into a collider and pushing them out
+//! again can stretch springs. So before each sweep the particles are projected out of the colliders
+//! (positions only: the contact stage that follows gives them their contact response), and the
+//! sweeps go on until both hold. Those projections are not turned into velocity.
 
+use super::contacts::Contacts;
 use super::model::Spring;
 use super::{Real, State, Vec3};
 
 /// The relative excess over the limit a converged sweep tolerates.
-pub const TOLERANCE: f64 = 1e-7;
+pub const TOLERANCE: f64 = 1e-9;
 
 /// The most sweeps one pass makes.
 pub const MAX_SWEEPS: usize = 10_000;
@@ -26,15 +32,15 @@ pub const MAX_SWEEPS: usize = 10_000;
 pub(crate) struct StrainLimit<T> {
     /// `1 + limit`.
     stretch: T,
-    /// Positions before the pass.
-    before: Vec<Vec3<T>>,
+    /// How far the springs moved each particle in this pass.
+    shift: Vec<Vec3<T>>,
     /// Sweeps of the last pass.
     last_sweeps: usize,
 }
 
 impl<T: Real> StrainLimit<T> {
     pub fn new(limit: f64, particles: usize) -> Self {
-        Self { stretch: T::from_f64(1.0 + limit), before: vec![Vec3::ZERO; particles], last_sweeps: 0 }
+        Self { stretch: T::from_f64(1.0 + limit), shift: vec![Vec3::ZERO; particles], last_sweeps: 0 }
     }
 
     /// Sweeps of the last pass (zero when no spring was too long).
@@ -43,13 +49,24 @@ impl<T: Real> StrainLimit<T> {
         self.last_sweeps
     }
 
-    /// Shortens the springs that are too long; returns whether any particle moved.
-    pub fn apply(&mut self, state: &mut State<T>, springs: &[Spring<T>], inverse_masses: &[T], h: T) -> bool {
+    /// Shortens the springs that are too long, keeping particles out of the colliders if any;
+    /// returns whether any particle moved.
+    pub fn apply(
+        &mut self,
+        state: &mut State<T>,
+        springs: &[Spring<T>],
+        inverse_masses: &[T],
+        contacts: Option<&Contacts<T>>,
+        h: T,
+    ) -> bool {
         let tolerance = T::from_f64(TOLERANCE);
         let x = &mut state.positions;
         let mut moved = false;
         self.last_sweeps = 0;
         while self.last_sweeps < MAX_SWEEPS {
+            if let Some(contacts) = contacts {
+                contacts.project_out(x, inverse_masses);
+            }
             let mut worst = T::ZERO;
             // Alternating the direction carries corrections both ways along a chain of springs.
             let forward = self.last_sweeps % 2 == 0;
@@ -66,13 +83,15 @@ impl<T: Real> StrainLimit<T> {
                 }
                 worst = worst.max((length - longest) / longest);
                 if !moved {
-                    self.before.copy_from_slice(x);
+                    self.shift.fill(Vec3::ZERO);
                     moved = true;
                 }
                 // length > longest ≥ 0, so the direction is defined.
                 let correction = d * ((length - longest) / (length * w));
                 x[i] += correction * wi;
                 x[j] -= correction * wj;
+                self.shift[i] += correction * wi;
+                self.shift[j] -= correction * wj;
             }
             self.last_sweeps += 1;
             if !(worst > tolerance) {
@@ -81,8 +100,8 @@ impl<T: Real> StrainLimit<T> {
         }
         if moved {
             let rate = T::ONE / h;
-            for ((v, &after), &before) in state.velocities.iter_mut().zip(x.iter()).zip(&self.before) {
-                *v += (after - before) * rate;
+            for (v, &shift) in state.velocities.iter_mut().zip(&self.shift) {
+                *v += shift * rate;
             }
         }
         moved
@@ -108,7 +127,7 @@ mod tests {
         let mut s = state(vec![Vec3::new(0.0, 0.0, 0.0), Vec3::new(2.0, 0.0, 0.0)]);
         let mut limit = StrainLimit::new(0.1, 2);
         // Particle 1 is three times lighter (inverse mass 3): it moves three times as far.
-        assert!(limit.apply(&mut s, &[spring(0, 1, 1.0)], &[1.0, 3.0], 0.5));
+        assert!(limit.apply(&mut s, &[spring(0, 1, 1.0)], &[1.0, 3.0], None, 0.5));
         let excess = 2.0 - 1.1;
         assert!((s.positions[0].x - 0.25 * excess).abs() < 1e-12);
         assert!((s.positions[1].x - (2.0 - 0.75 * excess)).abs() < 1e-12);
@@ -126,7 +145,7 @@ mod tests {
         let mut w = vec![1.0; n];
         w[0] = 0.0;
         let mut limit = StrainLimit::new(0.1, n);
-        assert!(limit.apply(&mut s, &springs, &w, 0.01));
+        assert!(limit.apply(&mut s, &springs, &w, None, 0.01));
         assert_eq!(s.positions[0], Vec3::ZERO);
         let sweeps = limit.last_sweeps();
         assert!(sweeps > 1 && sweeps < MAX_SWEEPS, "{sweeps}");
@@ -135,7 +154,7 @@ mod tests {
             assert!(l <= 1.1 * (1.0 + 1e-6), "spring {}-{} is {l}", sp.i, sp.j);
         }
         // A second pass finds at most tolerance-sized remainders: one sweep.
-        limit.apply(&mut s, &springs, &w, 0.01);
+        limit.apply(&mut s, &springs, &w, None, 0.01);
         assert_eq!(limit.last_sweeps(), 1);
     }
 
@@ -144,7 +163,7 @@ mod tests {
         let x = vec![Vec3::new(0.0, 0.0, 0.0), Vec3::new(1.05, 0.0, 0.0)];
         let mut s = state(x.clone());
         let mut limit = StrainLimit::new(0.1, 2);
-        assert!(!limit.apply(&mut s, &[spring(0, 1, 1.0)], &[1.0, 1.0], 0.01));
+        assert!(!limit.apply(&mut s, &[spring(0, 1, 1.0)], &[1.0, 1.0], None, 0.01));
         assert_eq!(s.positions, x);
     }
 }

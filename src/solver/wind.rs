@@ -259,7 +259,8 @@ mod tests {
     fn collapsed_triangles_and_lone_vertices_feel_no_wind() {
         let x = vec![Vec3::new(0.0, 0.0, 0.0), Vec3::new(1.0, 0.0, 0.0), Vec3::new(2.0, 0.0, 0.0)];
         for model in [WindModel::Viscous, WindModel::Aerodynamic] {
-            let config = WindConfig { model, velocity: DVec3::new(0.0, 4.0, 1.0), coefficient: 1.0, gust: None };
+            let config =
+                WindConfig { model, velocity: DVec3::new(0.0, 4.0, 1.0), coefficient: 1.0, gust: None };
             let mut wind = Wind::<f64>::new(&config, &[[0, 1, 2]], 3);
             let mut forces = vec![Vec3::ZERO; 3];
             wind.add_forces(&x, &[Vec3::ZERO; 3], 0.0, &mut forces);

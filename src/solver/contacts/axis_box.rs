@@ -13,10 +13,7 @@ pub(super) struct AxisBox<T> {
 
 impl<T: Real> AxisBox<T> {
     pub fn new(center: DVec3, half_extents: DVec3) -> Self {
-        Self {
-            center: Vec3::from_dvec3(center).to_array(),
-            half: Vec3::from_dvec3(half_extents).to_array(),
-        }
+        Self { center: Vec3::from_dvec3(center).to_array(), half: Vec3::from_dvec3(half_extents).to_array() }
     }
 
     pub fn signed_distance(&self, x: Vec3<T>) -> T {
@@ -32,7 +29,7 @@ impl<T: Real> AxisBox<T> {
         let mut nearest: Option<(usize, T)> = None;
         for a in 0..3 {
             let depth = self.half[a] - (p[a] - self.center[a]).abs();
-            if !(depth > T::ZERO) {
+            if !(depth >= T::ZERO) {
                 return None;
             }
             if nearest.is_none_or(|(_, d)| depth < d) {
@@ -45,6 +42,9 @@ impl<T: Real> AxisBox<T> {
         p[axis] = self.center[axis] + sign * self.half[axis];
         let mut normal = [T::ZERO; 3];
         normal[axis] = sign;
-        Some(Surface { point: Vec3::new(p[0], p[1], p[2]), normal: Vec3::new(normal[0], normal[1], normal[2]) })
+        Some(Surface {
+            point: Vec3::new(p[0], p[1], p[2]),
+            normal: Vec3::new(normal[0], normal[1], normal[2]),
+        })
     }
 }

@@ -15,21 +15,26 @@ pub(super) struct Cylinder<T> {
 
 impl<T: Real> Cylinder<T> {
     pub fn new(center: DVec3, radius: f64, height: f64) -> Self {
-        Self { center: Vec3::from_dvec3(center), radius: T::from_f64(radius), half_height: T::from_f64(0.5 * height) }
+        Self {
+            center: Vec3::from_dvec3(center),
+            radius: T::from_f64(radius),
+            half_height: T::from_f64(0.5 * height),
+        }
     }
 
     pub fn signed_distance(&self, x: Vec3<T>) -> T {
         let local = x - self.center;
         let radial = (local.x * local.x + local.z * local.z).sqrt() - self.radius;
         let axial = local.y.abs() - self.half_height;
-        let outside = (radial.max(T::ZERO) * radial.max(T::ZERO) + axial.max(T::ZERO) * axial.max(T::ZERO)).sqrt();
+        let outside =
+            (radial.max(T::ZERO) * radial.max(T::ZERO) + axial.max(T::ZERO) * axial.max(T::ZERO)).sqrt();
         outside + radial.max(axial).min(T::ZERO)
     }
 
     pub fn inside(&self, x: Vec3<T>) -> Option<Surface<T>> {
         let local = x - self.center;
         let radial2 = local.x * local.x + local.z * local.z;
-        if !(local.y.abs() < self.half_height && radial2 < self.radius * self.radius) {
+        if !(local.y.abs() <= self.half_height && radial2 <= self.radius * self.radius) {
             return None;
         }
         let radial = radial2.sqrt();
@@ -44,7 +49,8 @@ impl<T: Real> Cylinder<T> {
             } else {
                 Vec3::new(one, zero, zero)
             };
-            let point = Vec3::new(self.center.x + out.x * self.radius, x.y, self.center.z + out.z * self.radius);
+            let point =
+                Vec3::new(self.center.x + out.x * self.radius, x.y, self.center.z + out.z * self.radius);
             Some(Surface { point, normal: out })
         } else if top <= bottom {
             let point = Vec3::new(x.x, self.center.y + self.half_height, x.z);

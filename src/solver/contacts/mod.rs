@@ -2,8 +2,9 @@
 //!
 //! Contacts are resolved after the integrator and the constraints have moved the particles, by
 //! projection rather than penalty forces (which would store and release energy). A free particle
-//! found inside a shape is moved to the surface, the shape's outward normal `n` there is the
-//! contact normal, and if it approaches the surface (`v·n < 0`) its velocity changes by
+//! found inside a shape (or exactly on its surface: touching) is moved to the surface, the shape's
+//! outward normal `n` there is the contact normal, and if it approaches the surface (`v·n < 0`)
+//! its velocity changes by
 //!
 //! - normal: `Δv_n = -(1 + e) v_n`, so it leaves with `-e v_n` (restitution `e` in [0, 1]);
 //! - tangential: its tangential speed drops by `μ Δv_n` (Coulomb friction `μ`), and to zero
@@ -15,9 +16,10 @@
 //!
 //! Fast particles do not tunnel. A plane is a half-space: a particle that crossed it during a
 //! step is found behind it, so the end-of-step test is already continuous. Against a sphere the
-//! segment from the start-of-step position to the end is tested: a particle that entered and left
-//! again within the step, or ended past the centre (where the nearest surface point is on the far
-//! side), is put where it first met the surface. The start-of-step positions live in a buffer made
+//! segment from the start-of-step position to the end is tested: a particle that went through the
+//! ball within the step, or ended past the centre (where the nearest surface point is on the far
+//! side), is put where it first met the surface. A path that only grazes the surface (as a particle
+//! sliding over the ball does) is not a passage. The start-of-step positions live in a buffer made
 //! once, only when a scene has colliders. Boxes and cylinders are tested at the end of the step.
 //!
 //! Each shape has its own file: the test "is this point inside, and where is the nearest surface
@@ -138,7 +140,7 @@ impl<T: Real> ShapeIn<T> {
         }
     }
 
-    /// The nearest surface point and its normal, when `x` is strictly inside.
+    /// The nearest surface point and its normal, when `x` is inside or on the surface.
     fn inside(&self, x: Vec3<T>) -> Option<Surface<T>> {
         match self {
             Self::Plane(s) => s.inside(x),
@@ -160,7 +162,7 @@ impl<T: Real> ShapeIn<T> {
                         Some(first) if first.normal.dot(nearest.normal) < T::ZERO => Some(first),
                         _ => Some(nearest),
                     },
-                    None => entry(),
+                    None => s.passage(start, end),
                 }
             }
             other => other.inside(end),
@@ -205,7 +207,7 @@ impl<T: Real> Contacts<T> {
     }
 
     /// Moves free particles that are inside a collider out onto its surface, leaving velocities
-    /// alone: for a state that starts inside.
+    /// alone: for a state that starts inside, and within the strain limit's sweeps.
     pub fn project_out(&self, positions: &mut [Vec3<T>], inverse_masses: &[T]) {
         for (x, &w) in positions.iter_mut().zip(inverse_masses) {
             if w == T::ZERO {

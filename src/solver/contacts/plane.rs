@@ -25,6 +25,6 @@ impl<T: Real> Plane<T> {
 
     pub fn inside(&self, x: Vec3<T>) -> Option<Surface<T>> {
         let depth = self.signed_distance(x);
-        (depth < T::ZERO).then(|| Surface { point: x - self.normal * depth, normal: self.normal })
+        (depth <= T::ZERO).then(|| Surface { point: x - self.normal * depth, normal: self.normal })
     }
 }

@@ -40,7 +40,10 @@ fn a_dropped_particle_rebounds_to_restitution_squared_of_its_height() {
                 }
             }
             let expected = e * e;
-            assert!((peak - expected).abs() < 0.02 * expected, "{integrator:?}, e {e}: peak {peak}, expected {expected}");
+            assert!(
+                (peak - expected).abs() < 0.02 * expected,
+                "{integrator:?}, e {e}: peak {peak}, expected {expected}"
+            );
         }
     }
 }
@@ -61,10 +64,8 @@ fn a_box_sliding_with_friction_stops_after_v_squared_over_two_mu_g() {
         pins: vec![],
     });
     let start = centre_x(&model.positions);
-    let mut sim = Simulation::<f64>::new(
-        &model,
-        &config(IntegratorKind::SymplecticEuler, 1e-4, vec![plane(mu, 0.0)]),
-    );
+    let mut sim =
+        Simulation::<f64>::new(&model, &config(IntegratorKind::SymplecticEuler, 1e-4, vec![plane(mu, 0.0)]));
     for _ in 0..10_000 {
         sim.step().unwrap();
     }
@@ -84,13 +85,18 @@ fn a_particle_at_100_m_s_stops_at_a_plane_and_at_a_sphere() {
     let dt = 1.0 / 60.0;
     // Straight down onto the floor from 1 m: one step takes it 1.67 m.
     let model = particle(DVec3::new(0.0, 1.0, 0.0), DVec3::new(0.0, -100.0, 0.0));
-    let mut sim = Simulation::<f64>::new(&model, &config(IntegratorKind::SymplecticEuler, dt, vec![plane(0.3, 0.0)]));
+    let mut sim =
+        Simulation::<f64>::new(&model, &config(IntegratorKind::SymplecticEuler, dt, vec![plane(0.3, 0.0)]));
     sim.step().unwrap();
     assert!(sim.state().positions[0].y.abs() < 1e-12, "{:?}", sim.state().positions[0]);
     assert!(sim.state().velocities[0].y.abs() < 1e-12);
 
     // Through a ball of radius 0.3 m in one step: it stops on the near side.
-    let ball = Collider { shape: Shape::Sphere { center: DVec3::ZERO, radius: 0.3 }, friction: 0.0, restitution: 0.0 };
+    let ball = Collider {
+        shape: Shape::Sphere { center: DVec3::ZERO, radius: 0.3 },
+        friction: 0.0,
+        restitution: 0.0,
+    };
     for start in [DVec3::new(-0.8, 0.0, 0.0), DVec3::new(-0.4, 0.05, 0.0)] {
         let model = particle(start, DVec3::new(100.0, 0.0, 0.0));
         let mut sim = Simulation::<f64>::new(
@@ -138,7 +144,10 @@ fn contacts_never_add_kinetic_energy_and_leave_no_particle_inside() {
             contacts.resolve(&mut state, &vec![1.0; positions.len()]);
             for p in 0..positions.len() {
                 let (before, after) = (velocities[p].length_squared(), state.velocities[p].length_squared());
-                assert!(after <= before * (1.0 + 1e-12), "{shape:?} gained energy at {p}: {before} -> {after}");
+                assert!(
+                    after <= before * (1.0 + 1e-12),
+                    "{shape:?} gained energy at {p}: {before} -> {after}"
+                );
                 let depth = shape.signed_distance(state.positions[p].to_dvec3());
                 assert!(depth > -1e-12, "{shape:?}: particle {p} still {depth} inside");
             }
@@ -203,7 +212,8 @@ fn particles_that_start_inside_are_projected_out_and_pinned_ones_never_move() {
         DVec3::ZERO,
     );
     model.pin(1);
-    let sim = Simulation::<f64>::new(&model, &config(IntegratorKind::SymplecticEuler, 1e-3, vec![plane(0.3, 0.0)]));
+    let sim =
+        Simulation::<f64>::new(&model, &config(IntegratorKind::SymplecticEuler, 1e-3, vec![plane(0.3, 0.0)]));
     assert_eq!(sim.state().positions[0], Vec3::new(0.0, 0.0, 0.0));
     assert_eq!(sim.state().positions[1], Vec3::new(0.3, -0.2, 0.0));
     let mut sim = sim;
@@ -219,11 +229,16 @@ fn colliders_are_stages_only_when_present_each_type_named_once() {
     let model = particle(DVec3::new(0.0, 1.0, 0.0), DVec3::ZERO);
     let none = Simulation::<f64>::new(&model, &config(IntegratorKind::SymplecticEuler, 1e-3, vec![]));
     assert_eq!(none.stages(), ["gravity"]);
-    let ball = Collider { shape: Shape::Sphere { center: DVec3::ZERO, radius: 0.1 }, friction: 0.3, restitution: 0.0 };
+    let ball = Collider {
+        shape: Shape::Sphere { center: DVec3::ZERO, radius: 0.1 },
+        friction: 0.3,
+        restitution: 0.0,
+    };
     let colliders = vec![ball, plane(0.3, 0.0), ball];
     let both = Simulation::<f64>::new(&model, &config(IntegratorKind::SymplecticEuler, 1e-3, colliders));
     assert_eq!(both.stages(), ["gravity", "sphere", "plane"]);
     let shapes = all_shapes().into_iter().map(|shape| Collider { shape, friction: 0.3, restitution: 0.0 });
-    let all = Simulation::<f64>::new(&model, &config(IntegratorKind::SymplecticEuler, 1e-3, shapes.collect()));
+    let all =
+        Simulation::<f64>::new(&model, &config(IntegratorKind::SymplecticEuler, 1e-3, shapes.collect()));
     assert_eq!(all.stages(), ["gravity", "plane", "sphere", "box", "cylinder"]);
 }
