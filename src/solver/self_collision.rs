@@ -239,4 +239,14 @@ mod tests {
             }
         }
     }
+
+    #[test]
+    fn self_collision_is_a_stage_only_when_asked_for() {
+        use crate::solver::{Config, Simulation};
+        let m = model(&[0.0, 0.5, 1.0]);
+        let without = Simulation::<f64>::new(&m, &Config::default());
+        assert!(!without.stages().contains(&"self_collision"));
+        let with = Simulation::<f64>::new(&m, &Config { self_collision: Some(0.01), ..Config::default() });
+        assert_eq!(with.stages(), ["gravity", "springs", "self_collision"]);
+    }
 }

@@ -166,4 +166,57 @@ mod tests {
         assert!(!limit.apply(&mut s, &[spring(0, 1, 1.0)], &[1.0, 1.0], None, 0.01));
         assert_eq!(s.positions, x);
     }
+
+    /// A soft cloth hanging from two corners, with and without the limit.
+    fn hanging(limit: Option<f64>) -> (crate::solver::Model, crate::solver::Config) {
+        use crate::solver::{Cloth, Config, IntegratorKind, Model, Orientation, SpringParams};
+        let mut model = Model::default();
+        let soft = SpringParams { stiffness: 30.0, damping: 0.1 };
+        model.add_cloth(&Cloth {
+            size: [1.0, 1.0],
+            resolution: [12, 12],
+            center: glam::DVec3::new(0.0, 1.0, 0.0),
+            orientation: Orientation::Vertical,
+            mass: 0.5,
+            velocity: glam::DVec3::ZERO,
+            structural: soft,
+            shear: soft,
+            bending: soft,
+            pins: vec![[0, 0], [11, 0]],
+        });
+        let config = Config {
+            integrator: IntegratorKind::Verlet,
+            dt: 2e-3,
+            drag: 0.5,
+            strain_limit: limit,
+            ..Config::default()
+        };
+        (model, config)
+    }
+
+    #[test]
+    fn in_a_simulation_no_spring_ends_a_step_beyond_its_limit_and_pins_hold() {
+        use crate::solver::Simulation;
+        let (model, config) = hanging(Some(0.1));
+        let mut sim = Simulation::<f64>::new(&model, &config);
+        assert_eq!(sim.stages(), ["gravity", "drag", "springs", "strain_limit"]);
+        let mut worst: f64 = 0.0;
+        for _ in 0..1000 {
+            sim.step().unwrap();
+            worst = worst.max(sim.max_strain());
+        }
+        assert!(worst <= 0.1 * (1.0 + 1e-6), "strain reached {worst}");
+        assert!(worst > 0.099, "the limit was never reached: {worst}");
+        for p in [0, 11] {
+            assert_eq!(sim.state().positions[p].to_dvec3(), model.positions[p]);
+        }
+
+        let (model, config) = hanging(None);
+        let mut free = Simulation::<f64>::new(&model, &config);
+        assert!(!free.stages().contains(&"strain_limit"));
+        for _ in 0..1000 {
+            free.step().unwrap();
+        }
+        assert!(free.max_strain() > 0.2, "the soft cloth should stretch further: {}", free.max_strain());
+    }
 }

@@ -267,4 +267,66 @@ mod tests {
             assert!(forces.iter().all(|f| *f == Vec3::ZERO), "{model:?}: {forces:?}");
         }
     }
+
+    fn flag(wind: Option<WindConfig>, gravity: DVec3) -> crate::solver::Simulation<f64> {
+        use crate::solver::{Cloth, Config, IntegratorKind, Model, Orientation, Simulation, SpringParams};
+        let mut model = Model::default();
+        let springs = SpringParams { stiffness: 500.0, damping: 0.5 };
+        model.add_cloth(&Cloth {
+            size: [0.6, 0.4],
+            resolution: [8, 6],
+            center: glam::DVec3::new(0.0, 1.0, 0.0),
+            orientation: Orientation::Vertical,
+            mass: 0.1,
+            velocity: glam::DVec3::ZERO,
+            structural: springs,
+            shear: springs,
+            bending: springs,
+            pins: (0..8).map(|i| [i, 0]).collect(),
+        });
+        let config = Config {
+            integrator: IntegratorKind::Rk4,
+            dt: 2e-3,
+            drag: 0.2,
+            wind,
+            gravity,
+            ..Config::default()
+        };
+        Simulation::new(&model, &config)
+    }
+
+    #[test]
+    fn wind_is_a_stage_only_when_present_and_normals_only_for_the_viscous_model() {
+        let g = DVec3::new(0.0, -9.81, 0.0);
+        assert_eq!(flag(None, g).stages(), ["gravity", "drag", "springs"]);
+        let aerodynamic = WindConfig {
+            model: WindModel::Aerodynamic,
+            velocity: DVec3::Z * 4.0,
+            coefficient: 1.0,
+            gust: None,
+        };
+        assert_eq!(flag(Some(aerodynamic), g).stages(), ["gravity", "drag", "springs", "wind"]);
+        let viscous = WindConfig { model: WindModel::Viscous, ..aerodynamic };
+        assert_eq!(flag(Some(viscous), g).stages(), ["gravity", "drag", "springs", "normals", "wind"]);
+    }
+
+    #[test]
+    fn gusty_wind_blows_the_flag_downwind_without_tripping_the_energy_watch() {
+        // Without gravity the scene's only energy source is the wind: the watch must budget for it.
+        let gust = Gust { amplitude: 1.0, frequency: 3.0, wavelength: 1.0 };
+        for model in [WindModel::Viscous, WindModel::Aerodynamic] {
+            let wind = WindConfig {
+                model,
+                velocity: DVec3::new(0.0, 0.0, 30.0),
+                coefficient: 0.05,
+                gust: Some(gust),
+            };
+            let mut sim = flag(Some(wind), DVec3::ZERO);
+            for _ in 0..500 {
+                sim.step().unwrap_or_else(|d| panic!("{model:?}: {d:?}"));
+            }
+            let mean_z = sim.state().positions.iter().map(|p| p.z).sum::<f64>() / 48.0;
+            assert!(mean_z > 0.02, "{model:?}: mean z {mean_z}");
+        }
+    }
 }
