@@ -141,7 +141,9 @@ impl Model {
         let range = self.add_particles(positions, |_| per_particle, cloth.velocity);
         let at = |i: usize, j: usize| range.start + j * nx + i;
 
-        let grid_springs: [(SpringKind, SpringParams, &[(usize, usize, usize, usize)]); 3] = [
+        // Per family: the (i, j) offsets of a spring's two ends.
+        type Family<'a> = (SpringKind, SpringParams, &'a [(usize, usize, usize, usize)]);
+        let grid_springs: [Family; 3] = [
             (SpringKind::Structural, cloth.structural, &[(0, 0, 1, 0), (0, 0, 0, 1)]),
             (SpringKind::Shear, cloth.shear, &[(0, 0, 1, 1), (1, 0, 0, 1)]),
             (SpringKind::Bending, cloth.bending, &[(0, 0, 2, 0), (0, 0, 0, 2)]),

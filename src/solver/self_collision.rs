@@ -14,6 +14,8 @@
 //! way: an inelastic collision, which cannot add kinetic energy. Coincident particles have no
 //! line between them; they are separated along y. One Gauss-Seidel sweep runs per step.
 
+#![allow(clippy::neg_cmp_op_on_partial_ord, reason = "written so that a NaN fails each test")]
+
 use super::model::Model;
 use super::{Real, State, Vec3};
 
@@ -86,8 +88,8 @@ impl<T: Real> SelfCollision<T> {
     /// Counting-sorts the particles into the hash buckets of their cells.
     fn build(&mut self, x: &[Vec3<T>]) {
         self.bucket_start.fill(0);
-        for p in 0..x.len() {
-            let b = self.bucket(self.cell(x[p]));
+        for (p, &position) in x.iter().enumerate() {
+            let b = self.bucket(self.cell(position));
             self.bucket_of[p] = b as u32;
             self.bucket_start[b + 1] += 1;
         }
@@ -107,6 +109,7 @@ impl<T: Real> SelfCollision<T> {
     }
 
     /// Pushes apart every unjoined pair closer than `2 · thickness`; returns whether any moved.
+    #[allow(clippy::needless_range_loop, reason = "each particle updates itself and a partner")]
     pub fn resolve(&mut self, state: &mut State<T>, inverse_masses: &[T]) -> bool {
         self.build(&state.positions);
         let (x, v) = (&mut state.positions, &mut state.velocities);

@@ -142,8 +142,8 @@ fn contacts_never_add_kinetic_energy_and_leave_no_particle_inside() {
             contacts.begin_step(&positions);
             let mut state = State { positions: positions.clone(), velocities: velocities.clone() };
             contacts.resolve(&mut state, &vec![1.0; positions.len()]);
-            for p in 0..positions.len() {
-                let (before, after) = (velocities[p].length_squared(), state.velocities[p].length_squared());
+            for (p, (v0, v1)) in velocities.iter().zip(&state.velocities).enumerate() {
+                let (before, after) = (v0.length_squared(), v1.length_squared());
                 assert!(
                     after <= before * (1.0 + 1e-12),
                     "{shape:?} gained energy at {p}: {before} -> {after}"
