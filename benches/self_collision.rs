@@ -3,7 +3,7 @@
 //! within the collision distance of one below it. Linear cost shows as a constant time per
 //! particle from 32² to 128².
 
-use criterion::{BatchSize, BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
+use criterion::{BatchSize, BenchmarkId, Criterion, Throughput};
 use drape::solver::{Cloth, Model, Orientation, SelfCollision, SpringParams, State, Vec3};
 use glam::DVec3;
 
@@ -50,5 +50,8 @@ fn self_collision(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, self_collision);
-criterion_main!(benches);
+fn main() {
+    let mut criterion = Criterion::default().configure_from_args();
+    self_collision(&mut criterion);
+    criterion.final_summary();
+}
