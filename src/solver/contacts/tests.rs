@@ -242,3 +242,25 @@ fn colliders_are_stages_only_when_present_each_type_named_once() {
         Simulation::<f64>::new(&model, &config(IntegratorKind::SymplecticEuler, 1e-3, shapes.collect()));
     assert_eq!(all.stages(), ["gravity", "plane", "sphere", "box", "cylinder"]);
 }
+
+#[test]
+fn single_precision_contacts_hold_as_well() {
+    let ball = Collider {
+        shape: Shape::Sphere { center: DVec3::ZERO, radius: 0.3 },
+        friction: 0.5,
+        restitution: 0.0,
+    };
+    let mut model = Model::default();
+    model.add_particles((0..20).map(|k| DVec3::new(0.01 * k as f64, 1.0, 0.0)), |_| 0.1, DVec3::ZERO);
+    let mut sim = Simulation::<f32>::new(
+        &model,
+        &config(IntegratorKind::SymplecticEuler, 1e-3, vec![ball, plane(0.5, 0.0)]),
+    );
+    for _ in 0..2000 {
+        sim.step().unwrap();
+        for x in &sim.state().positions {
+            let x = x.to_dvec3();
+            assert!(ball.shape.signed_distance(x) > -1e-6 && x.y > -1e-6, "{x:?}");
+        }
+    }
+}

@@ -9,6 +9,9 @@
 //! out of the solve (their rows and columns are held at zero), so they never move. The previous
 //! step's `Δv` is the starting guess, which makes slowly changing motion converge in a few
 //! iterations.
+//!
+//! Wind enters the right-hand side at the start of the step but not the matrix: it is weak next
+//! to the springs, and its derivative (through the moving normals) is neither symmetric nor cheap.
 
 use super::super::dynamics::Dynamics;
 use super::super::springs::{direction, stiffness_block};
