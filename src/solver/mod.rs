@@ -38,6 +38,5 @@ pub use self_collision::SelfCollision;
 pub use simulation::{Config, Simulation};
 pub use stability::{Divergence, DivergenceReason, stable_step};
 pub use state::State;
-pub use strain_limit::{MAX_SWEEPS as STRAIN_LIMIT_MAX_SWEEPS, TOLERANCE as STRAIN_LIMIT_TOLERANCE};
 pub use vec3::Vec3;
 pub use wind::{Gust, WindConfig, WindModel};
