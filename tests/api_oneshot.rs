@@ -341,3 +341,21 @@ async fn requests_over_the_concurrency_limit_are_shed_with_503() {
     assert_eq!(cancelled.problem()["type"], "/problems/job-cancelled");
     assert_eq!(get(&app, "/healthz").await.status, 200);
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn results_are_served_in_the_scenes_format() {
+    let (_, app) = test_app(jobs_config(), ApiConfig::default());
+    let scene = TINY.replace(r#""frames": "final""#, r#""frames": "all", "format": "pc2""#);
+    let id = post_json(&app, "/jobs", &scene).await.json()["id"].as_str().unwrap().to_string();
+    assert_eq!(poll_until(&app, &id, is_final).await["status"], "succeeded");
+    let result = get(&app, &format!("/jobs/{id}/result")).await;
+    assert_eq!(result.status, 200);
+    assert_eq!(result.header("content-type"), Some("application/x-pc2"));
+    // PC2: a 32-byte header (magic, version, points, start, sample rate, samples), then
+    // samples × points × 3 little-endian f32.
+    assert_eq!(&result.body[..12], b"POINTCACHE2\0");
+    let points = u32::from_le_bytes(result.body[16..20].try_into().unwrap()) as usize;
+    let samples = u32::from_le_bytes(result.body[28..32].try_into().unwrap()) as usize;
+    assert_eq!(points, 3);
+    assert_eq!(result.body.len(), 32 + samples * points * 12);
+}

@@ -58,7 +58,7 @@ fn run_job(shared: &Shared, id: &JobId, ticket: Ticket) {
             hook(&compiled);
         }
         let recording = execute(&compiled, &live.control);
-        let encoded = encode_result(&recording);
+        let encoded = encode_result(&recording, &compiled.output);
         (recording.stats, encoded)
     }));
 
