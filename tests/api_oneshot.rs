@@ -404,3 +404,53 @@ async fn the_result_format_is_chosen_by_query_or_accept_and_stored_once() {
     assert_eq!(send(&app, keyed("/jobs?format=json")).await.status, 202);
     assert_eq!(send(&app, keyed("/jobs?format=npz")).await.status, 422);
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_json_result_is_served_in_any_format_that_can_carry_it() {
+    let (_, app) = test_app(jobs_config(), ApiConfig::default());
+    let submit = |fields: &'static str| {
+        let app = app.clone();
+        async move {
+            let scene =
+                TINY.replace(r#""frames": "final""#, &format!(r#""frames": "all", "fields": {fields}"#));
+            let id = post_json(&app, "/jobs", &scene).await.json()["id"].as_str().unwrap().to_string();
+            assert_eq!(poll_until(&app, &id, is_final).await["status"], "succeeded");
+            format!("/jobs/{id}/result")
+        }
+    };
+    let path = submit(r#"["positions"]"#).await;
+    let json = get(&app, &path).await;
+    assert_eq!(json.header("content-type"), Some("application/json"));
+    let frames = json.json()["frames"].as_array().unwrap().clone();
+
+    // PC2 carries the positions of every frame, as f32, in frame order.
+    let pc2 = get(&app, &format!("{path}?format=pc2")).await;
+    assert_eq!((pc2.status, pc2.header("content-type")), (200, Some("application/x-pc2")));
+    let values: Vec<f32> =
+        pc2.body[32..].chunks_exact(4).map(|b| f32::from_le_bytes(b.try_into().unwrap())).collect();
+    let expected: Vec<f32> = frames
+        .iter()
+        .flat_map(|f| f["positions"].as_array().unwrap().iter().map(|x| x.as_f64().unwrap() as f32))
+        .collect();
+    assert_eq!(values, expected);
+    let glb =
+        send(&app, Request::get(&path).header("accept", "model/gltf-binary").body(Body::empty()).unwrap())
+            .await;
+    assert_eq!((glb.status, glb.header("content-type")), (200, Some("model/gltf-binary")));
+    assert_eq!(&glb.body[..4], b"glTF");
+    let npy = get(&app, &format!("{path}?format=npy")).await;
+    assert_eq!((npy.status, npy.header("content-type")), (200, Some("application/x-npy")));
+    assert_eq!(&npy.body[..6], b"\x93NUMPY");
+
+    // With velocities too, NPY becomes NPZ (a zip of one array per field), and OBJ, which holds
+    // positions and normals only, is refused naming the field.
+    let path = submit(r#"["positions", "velocities"]"#).await;
+    let npz = get(&app, &format!("{path}?format=npy")).await;
+    assert_eq!((npz.status, npz.header("content-type")), (200, Some("application/x-npz")));
+    assert_eq!(&npz.body[..2], b"PK");
+    let obj = get(&app, &format!("{path}?format=obj")).await;
+    assert_eq!(obj.status, 422, "{}", obj.text());
+    let problem = obj.problem();
+    assert_eq!(problem["type"], "/problems/format-cannot-carry");
+    assert_eq!(problem["errors"][0]["pointer"], "/output/fields/1");
+}

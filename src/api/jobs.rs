@@ -10,7 +10,7 @@ use super::AppState;
 use super::extract::{FormatChoice, IdempotencyKey, JobPath, PageQuery, SceneBody};
 use super::problem::AppError;
 use super::views::job_view;
-use crate::jobs::{Cancelled, JobRecord, Page, StoredResult, Submission};
+use crate::jobs::{Cancelled, JobRecord, Page, StoredResult, Submission, TranscodeError, transcode};
 
 /// `POST /jobs`: queues a scene; `202` with the job and its `Location`. A repeated
 /// `Idempotency-Key` with the same body answers with the same job. `?format=` sets the format
@@ -60,8 +60,11 @@ pub async fn get(State(state): State<AppState>, JobPath(id): JobPath) -> Result<
     Ok(Json(job_view(&job)).into_response())
 }
 
-/// `GET /jobs/{id}/result`: the result of an ended job. It is stored once, in the format chosen
-/// at submission; asking (`?format=`, `Accept`) for another is a `406` that says which it is.
+/// `GET /jobs/{id}/result`: the result of an ended job, in the format asked for (`?format=`,
+/// `Accept`), else the one it was stored in. A result stored as JSON (the default) is made into
+/// any other format on request; one stored in a binary format is served only as that, and asking
+/// for another is a `406` that says which it is. A format that cannot carry what the run
+/// recorded is a `422` naming the field.
 pub async fn result(
     State(state): State<AppState>,
     JobPath(id): JobPath,
@@ -72,19 +75,27 @@ pub async fn result(
         Some(result) if job.status.is_final() => result,
         _ => return Err(AppError::NoResult { id: job.id, status: job.status, message: job.message }),
     };
-    match format {
-        Some(wanted) if wanted.media_type() != result.media_type => Err(AppError::NotAcceptable {
+    let Some(wanted) = format else { return Ok(result_response(&job, result)) };
+    let stored = result.media_type;
+    let transcoded = tokio::task::spawn_blocking(move || transcode(result, wanted))
+        .await
+        .map_err(|e| AppError::Internal(format!("transcoding job {id} failed: {e}")))?;
+    match transcoded {
+        Ok(result) => Ok(result_response(&job, result)),
+        Err(TranscodeError::NotCanonical { .. }) => Err(AppError::NotAcceptable {
             detail: format!(
-                "job {id}'s result is stored as {}; to get {} ({}), submit the scene with ?format={} \
-                 or output.format `{}`",
-                result.media_type,
+                "job {id}'s result is stored as {stored}, from which no other format is made; to get {} ({}), \
+                 submit the scene with ?format={} or output.format `{}`, or keep the default json",
                 wanted.name(),
                 wanted.media_type(),
                 wanted.name(),
                 wanted.name()
             ),
         }),
-        _ => Ok(result_response(&job, result)),
+        Err(TranscodeError::CannotCarry { format, errors }) => {
+            Err(AppError::CannotCarry { format: format.name(), errors })
+        }
+        Err(TranscodeError::Broken(message)) => Err(AppError::Internal(message)),
     }
 }
 

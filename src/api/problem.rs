@@ -97,6 +97,14 @@ pub enum AppError {
     },
     /// 422: the document is JSON but not a valid scene.
     InvalidScene(Vec<FieldError>),
+    /// 422: the result cannot be given in the format asked for: the run recorded something the
+    /// format cannot carry (named by the scene's `output` field).
+    CannotCarry {
+        /// The format asked for.
+        format: &'static str,
+        /// What it cannot carry.
+        errors: Vec<FieldError>,
+    },
     /// 422: the scene is valid but larger than this server's limits.
     OverLimit(Vec<FieldError>),
     /// 422: the `Idempotency-Key` was already used with a different body.
@@ -148,9 +156,11 @@ impl AppError {
             }
             Self::BodyTooLarge | Self::OverBudget { .. } => StatusCode::PAYLOAD_TOO_LARGE,
             Self::UnsupportedMediaType { .. } => StatusCode::UNSUPPORTED_MEDIA_TYPE,
-            Self::InvalidScene(_) | Self::OverLimit(_) | Self::KeyReused { .. } | Self::TooSlow { .. } => {
-                StatusCode::UNPROCESSABLE_ENTITY
-            }
+            Self::InvalidScene(_)
+            | Self::CannotCarry { .. }
+            | Self::OverLimit(_)
+            | Self::KeyReused { .. }
+            | Self::TooSlow { .. } => StatusCode::UNPROCESSABLE_ENTITY,
             Self::QueueFull { .. } => StatusCode::TOO_MANY_REQUESTS,
             Self::ShuttingDown | Self::Overloaded => StatusCode::SERVICE_UNAVAILABLE,
             Self::JobFailed { .. } | Self::Internal(_) => StatusCode::INTERNAL_SERVER_ERROR,
@@ -225,6 +235,11 @@ impl AppError {
                 },
             ),
             Self::InvalidScene(errors) => ("invalid-scene", "The scene is invalid", summary(errors)),
+            Self::CannotCarry { format, errors } => (
+                "format-cannot-carry",
+                "The format cannot carry this result",
+                format!("{format} cannot carry what the run recorded: {}", summary(errors)),
+            ),
             Self::OverLimit(errors) => (
                 "over-limit",
                 "The scene exceeds this server's limits",
@@ -268,9 +283,10 @@ impl AppError {
 
     fn errors(&self) -> Option<&[FieldError]> {
         match self {
-            Self::InvalidScene(errors) | Self::OverLimit(errors) | Self::BadRequest { errors, .. } => {
-                Some(errors)
-            }
+            Self::InvalidScene(errors)
+            | Self::CannotCarry { errors, .. }
+            | Self::OverLimit(errors)
+            | Self::BadRequest { errors, .. } => Some(errors),
             _ => None,
         }
     }

@@ -19,7 +19,7 @@ mod service;
 mod status;
 mod store;
 
-pub use encode::encode_result;
+pub use encode::{TranscodeError, encode_result, transcode};
 pub use fingerprint::fingerprint;
 pub use id::JobId;
 pub use limits::Limits;

@@ -47,8 +47,25 @@ pub fn encode<W: Write>(recording: &Recording, format: Format, writer: W) -> io:
     writer.flush()
 }
 
+/// Whether `format` can carry everything `recording` holds; each problem is named by the
+/// `output` field of the scene at fault (`/output/fields/1`, `/output/frames`), as [`check`]
+/// names them before a run.
+pub fn check_recording(format: Format, recording: &Recording) -> Result<(), Vec<crate::scene::FieldError>> {
+    let output = crate::scene::Output {
+        frames: recording.selection,
+        fields: recorded_fields(recording),
+        format,
+        ..crate::scene::Output::default()
+    };
+    check(format, &output)?;
+    match unencodable(recording, format) {
+        None => Ok(()),
+        Some(problem) => Err(vec![crate::scene::FieldError::new("/output/frames", problem)]),
+    }
+}
+
 /// The fields a recording holds, in contract order.
-fn recorded_fields(recording: &Recording) -> Vec<Field> {
+pub fn recorded_fields(recording: &Recording) -> Vec<Field> {
     let f = &recording.frames;
     let held = [
         f.positions.is_some(),
