@@ -119,6 +119,21 @@ pub struct PageQuery {
     pub limit: u64,
 }
 
+/// The query string as name-value pairs; a malformed one is a 400.
+async fn query_parameters<S: Send + Sync>(
+    parts: &mut Parts,
+    state: &S,
+) -> Result<HashMap<String, String>, AppError> {
+    let axum::extract::Query(params) =
+        axum::extract::Query::<HashMap<String, String>>::from_request_parts(parts, state).await.map_err(
+            |e| AppError::BadRequest {
+                detail: format!("the query string is malformed: {e}"),
+                errors: vec![],
+            },
+        )?;
+    Ok(params)
+}
+
 impl PageQuery {
     /// The largest page.
     pub const MAX_LIMIT: u64 = 100;
@@ -128,13 +143,7 @@ impl<S: Send + Sync> FromRequestParts<S> for PageQuery {
     type Rejection = AppError;
 
     async fn from_request_parts(parts: &mut Parts, state: &S) -> Result<Self, AppError> {
-        let axum::extract::Query(params) =
-            axum::extract::Query::<HashMap<String, String>>::from_request_parts(parts, state).await.map_err(
-                |e| AppError::BadRequest {
-                    detail: format!("the query string is malformed: {e}"),
-                    errors: vec![],
-                },
-            )?;
+        let params = query_parameters(parts, state).await?;
         let mut errors = Vec::new();
         let mut number =
             |name: &str, default: u64, range: std::ops::RangeInclusive<u64>| match params.get(name) {
@@ -178,13 +187,7 @@ impl<S: Send + Sync, const ACCEPT: bool> FromRequestParts<S> for FormatChoice<AC
     type Rejection = AppError;
 
     async fn from_request_parts(parts: &mut Parts, state: &S) -> Result<Self, AppError> {
-        let axum::extract::Query(params) =
-            axum::extract::Query::<HashMap<String, String>>::from_request_parts(parts, state).await.map_err(
-                |e| AppError::BadRequest {
-                    detail: format!("the query string is malformed: {e}"),
-                    errors: vec![],
-                },
-            )?;
+        let params = query_parameters(parts, state).await?;
         if let Some(name) = params.get("format") {
             return Format::from_name(name).map(|f| Self(Some(f))).map_err(|e| AppError::BadRequest {
                 detail: e.to_string(),
