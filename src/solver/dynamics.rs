@@ -5,6 +5,7 @@
 //! A force that a scene does not have is `None` and costs nothing. Wind keeps scratch (vertex
 //! normals), so an evaluation takes `&mut self`.
 
+use super::grid_springs::{self, GridSprings};
 use super::model::{Model, Spring};
 use super::wind::{Wind, WindConfig};
 use super::{Real, Vec3, springs};
@@ -22,6 +23,10 @@ pub struct Dynamics<T> {
     pub drag: Option<T>,
     /// Every spring.
     pub springs: Vec<Spring<T>>,
+    /// The grid bodies whose springs a stencil pass evaluates.
+    grids: Vec<GridSprings<T>>,
+    /// The springs no grid covers, evaluated from the list.
+    listed_springs: Vec<Spring<T>>,
     /// Wind on the surface triangles, when the scene has any.
     pub(crate) wind: Option<Wind<T>>,
 }
@@ -47,6 +52,13 @@ impl<T: Real> Dynamics<T> {
                 damping: T::from_f64(s.damping),
                 kind: s.kind,
             })
+            .collect::<Vec<_>>();
+        let grids = grid_springs::grids(model, &springs);
+        let listed_springs = springs
+            .iter()
+            .enumerate()
+            .filter(|(k, _)| !grids.iter().any(|g| g.springs().contains(k)))
+            .map(|(_, s)| *s)
             .collect();
         Self {
             masses,
@@ -54,6 +66,8 @@ impl<T: Real> Dynamics<T> {
             gravity: (gravity != glam::DVec3::ZERO).then(|| Vec3::from_dvec3(gravity)),
             drag: (drag > 0.0).then(|| T::from_f64(drag)),
             springs,
+            grids,
+            listed_springs,
             wind: None,
         }
     }
@@ -92,7 +106,10 @@ impl<T: Real> Dynamics<T> {
                 }
             }
         }
-        springs::add_forces(&self.springs, x, v, forces);
+        for grid in &mut self.grids {
+            grid.add_forces(x, v, forces);
+        }
+        springs::add_forces(&self.listed_springs, x, v, forces);
         if let Some(wind) = &mut self.wind {
             wind.add_forces(x, v, t, forces);
         }
