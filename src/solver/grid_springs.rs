@@ -366,4 +366,47 @@ mod tests {
         }
         assert!((fused.energy().kinetic - listed.energy().kinetic).abs() < 1e-9);
     }
+
+    /// The performance peers' hanging cloth (`/work/shared/bench/peers`): N = 32, 1 s at 1e-4 s.
+    /// Their NumPy, Taichi, Warp, Newton and C++ versions all end with the centre particle at
+    /// y = 0.53204 and particle (0, 31) at y = 0.17014 (spread 4e-7 among them, in f32).
+    fn peers_cloth_after_one_second<T: Real>() -> (f64, f64) {
+        use super::super::{Config, IntegratorKind, Simulation};
+        let n = 32;
+        let springs = SpringParams { stiffness: 5000.0, damping: 0.5 };
+        let mut model = Model::default();
+        model.add_cloth(&Cloth {
+            size: [1.0, 1.0],
+            resolution: [n, n],
+            center: DVec3::new(0.5, 1.0, 0.5),
+            orientation: Orientation::Horizontal,
+            mass: 1.0,
+            velocity: DVec3::ZERO,
+            structural: springs,
+            shear: springs,
+            bending: springs,
+            pins: vec![[0, 0], [n - 1, 0]],
+        });
+        let config = Config {
+            integrator: IntegratorKind::SymplecticEuler,
+            dt: 1e-4,
+            drag: 0.01 * (n * n) as f64,
+            ..Config::default()
+        };
+        let mut simulation = Simulation::<T>::new(&model, &config);
+        for _ in 0..10_000 {
+            simulation.step().expect("stable at the peers' step");
+        }
+        let y = |i: usize, j: usize| simulation.state().positions[j * n + i].y.to_f64();
+        (y(n / 2, n / 2), y(0, n - 1))
+    }
+
+    #[test]
+    fn the_peers_cloth_hangs_where_every_peer_puts_it() {
+        for (centre, corner) in [peers_cloth_after_one_second::<f32>(), peers_cloth_after_one_second::<f64>()]
+        {
+            assert!((centre - 0.5320434).abs() < 3e-6, "centre at y = {centre}");
+            assert!((corner - 0.1701399).abs() < 3e-6, "corner at y = {corner}");
+        }
+    }
 }
