@@ -1,8 +1,13 @@
-//! One step of a 128×128 cloth with structural, shear and bending springs, for symplectic and
-//! implicit Euler in f32 and f64.
+//! One step of the performance peers' hanging cloth at N = 32, 64, 128 and 256, for symplectic
+//! Euler, RK4 and implicit Euler in f32 and f64.
+//!
+//! Explicit integrators use the peers' step for each size (the largest power-of-two fraction of
+//! 1e-4 s that is stable); implicit Euler uses 1/600 s. `docs/performance.md` has the figures.
 
 // criterion_group! generates an undocumented public function.
 #![allow(missing_docs)]
+
+use std::time::Duration;
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use glam::DVec3;
@@ -31,9 +36,21 @@ fn cloth(n: usize) -> Model {
     model
 }
 
-fn bench_step<T: Real>(c: &mut Criterion, integrator: IntegratorKind, dt: f64) {
-    let n = 128;
-    let model = cloth(n);
+/// The peers' explicit step for an `n × n` cloth.
+fn explicit_dt(n: usize) -> f64 {
+    match n {
+        32 => 1e-4,
+        64 => 5e-5,
+        128 => 1.25e-5,
+        _ => 3.125e-6,
+    }
+}
+
+fn bench_step<T: Real>(c: &mut Criterion, n: usize, integrator: IntegratorKind) {
+    let dt = match integrator {
+        IntegratorKind::ImplicitEuler => 1.0 / 600.0,
+        _ => explicit_dt(n),
+    };
     let config = Config {
         integrator,
         settings: IntegratorSettings::default(),
@@ -42,22 +59,29 @@ fn bench_step<T: Real>(c: &mut Criterion, integrator: IntegratorKind, dt: f64) {
         drag: 0.01 * (n * n) as f64,
         ..Config::default()
     };
-    let mut sim = Simulation::<T>::new(&model, &config);
+    let mut sim = Simulation::<T>::new(&cloth(n), &config);
     c.bench_function(&format!("step/cloth{n}/{}/{}", integrator.name(), T::NAME), |b| {
         b.iter(|| sim.step().expect("the benchmark cloth stays stable"))
     });
 }
 
 fn steps(c: &mut Criterion) {
-    bench_step::<f32>(c, IntegratorKind::SymplecticEuler, 1.25e-5);
-    bench_step::<f64>(c, IntegratorKind::SymplecticEuler, 1.25e-5);
-    bench_step::<f32>(c, IntegratorKind::ImplicitEuler, 1.0 / 600.0);
-    bench_step::<f64>(c, IntegratorKind::ImplicitEuler, 1.0 / 600.0);
+    for n in [32, 64, 128, 256] {
+        for integrator in
+            [IntegratorKind::SymplecticEuler, IntegratorKind::Rk4, IntegratorKind::ImplicitEuler]
+        {
+            bench_step::<f32>(c, n, integrator);
+            bench_step::<f64>(c, n, integrator);
+        }
+    }
 }
 
 criterion_group! {
     name = benches;
-    config = Criterion::default().sample_size(20).measurement_time(std::time::Duration::from_secs(4));
+    config = Criterion::default()
+        .sample_size(10)
+        .warm_up_time(Duration::from_millis(500))
+        .measurement_time(Duration::from_secs(2));
     targets = steps
 }
 criterion_main!(benches);

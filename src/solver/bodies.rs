@@ -9,7 +9,7 @@ use std::ops::Range;
 
 use glam::DVec3;
 
-use super::model::{Model, SpringKind, SpringParams};
+use super::model::{Model, SpringGrid, SpringKind, SpringParams};
 
 /// Whether a cloth starts flat in the x-z plane or hangs in the x-y plane.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -149,6 +149,7 @@ impl Model {
         let range = self.add_particles(positions, |_| per_particle, cloth.velocity);
         let at = |i: usize, j: usize| range.start + j * nx + i;
 
+        let first_spring = self.springs.len();
         for (kind, offsets) in CLOTH_STENCIL {
             let params = match kind {
                 SpringKind::Structural => cloth.structural,
@@ -157,13 +158,22 @@ impl Model {
             };
             for [ai, aj, bi, bj] in offsets {
                 let (reach_i, reach_j) = (ai.max(bi), aj.max(bj));
+                // One rest length per family, so that the stencil pass can share it: the grid is
+                // affine, so every spring of a family has this length up to rounding.
+                let rest = place(ai, aj).distance(place(bi, bj));
                 for j in 0..ny.saturating_sub(reach_j) {
                     for i in 0..nx.saturating_sub(reach_i) {
-                        self.connect(at(i + ai, j + aj), at(i + bi, j + bj), params, kind);
+                        self.connect_with_rest(at(i + ai, j + aj), at(i + bi, j + bj), rest, params, kind);
                     }
                 }
             }
         }
+        self.grids.push(SpringGrid {
+            first_particle: range.start,
+            resolution: [nx, ny],
+            stencil: CLOTH_STENCIL.iter().flat_map(|(_, offsets)| *offsets).collect(),
+            springs: first_spring..self.springs.len(),
+        });
         for j in 0..ny - 1 {
             for i in 0..nx - 1 {
                 let (p00, p10, p01, p11) = (at(i, j), at(i + 1, j), at(i, j + 1), at(i + 1, j + 1));

@@ -5,9 +5,10 @@
 //! A force that a scene does not have is `None` and costs nothing. Wind keeps scratch (vertex
 //! normals), so an evaluation takes `&mut self`.
 
+use super::grid_springs::{self, GridSprings};
 use super::model::{Model, Spring};
 use super::wind::{Wind, WindConfig};
-use super::{Real, Vec3, springs};
+use super::{Real, State, Vec3, springs};
 
 /// Particle masses and the forces acting on them.
 #[derive(Clone, Debug)]
@@ -22,6 +23,10 @@ pub struct Dynamics<T> {
     pub drag: Option<T>,
     /// Every spring.
     pub springs: Vec<Spring<T>>,
+    /// The grid bodies whose springs a stencil pass evaluates.
+    grids: Vec<GridSprings<T>>,
+    /// The springs no grid covers, evaluated from the list.
+    listed_springs: Vec<Spring<T>>,
     /// Wind on the surface triangles, when the scene has any.
     pub(crate) wind: Option<Wind<T>>,
 }
@@ -47,6 +52,13 @@ impl<T: Real> Dynamics<T> {
                 damping: T::from_f64(s.damping),
                 kind: s.kind,
             })
+            .collect::<Vec<_>>();
+        let grids = grid_springs::grids(model, &springs);
+        let listed_springs = springs
+            .iter()
+            .enumerate()
+            .filter(|(k, _)| !grids.iter().any(|g| g.springs().contains(k)))
+            .map(|(_, s)| *s)
             .collect();
         Self {
             masses,
@@ -54,6 +66,8 @@ impl<T: Real> Dynamics<T> {
             gravity: (gravity != glam::DVec3::ZERO).then(|| Vec3::from_dvec3(gravity)),
             drag: (drag > 0.0).then(|| T::from_f64(drag)),
             springs,
+            grids,
+            listed_springs,
             wind: None,
         }
     }
@@ -92,10 +106,44 @@ impl<T: Real> Dynamics<T> {
                 }
             }
         }
-        springs::add_forces(&self.springs, x, v, forces);
+        for grid in &mut self.grids {
+            grid.add_forces(x, v, &self.masses, forces);
+        }
+        springs::add_forces(&self.listed_springs, x, v, forces);
         if let Some(wind) = &mut self.wind {
             wind.add_forces(x, v, t, forces);
         }
+    }
+
+    /// One symplectic Euler step in a single pass over the particles, for a scene that is one
+    /// grid body and nothing else (no other springs, no wind): the forces start in the grid's
+    /// per-axis arrays as the body forces, the springs add to them, and the update writes the new
+    /// state. Returns the stability watch's sums over the new state (see
+    /// [`GridSprings::symplectic_update`]), or `None`, having done nothing, for any other scene.
+    pub(crate) fn fused_symplectic_step(&mut self, state: &mut State<T>, h: T) -> Option<(T, T)> {
+        let [grid] = self.grids.as_mut_slice() else { return None };
+        if self.wind.is_some()
+            || !self.listed_springs.is_empty()
+            || grid.particles() != (0..self.masses.len())
+        {
+            return None;
+        }
+        let body = self.gravity.unwrap_or(Vec3::ZERO);
+        let masses = &self.masses;
+        match self.drag {
+            Some(drag) => {
+                grid.load(&state.positions, &state.velocities, masses, |m, v| (body - v * drag) * m)
+            }
+            None => grid.load(&state.positions, &state.velocities, masses, |m, _| body * m),
+        }
+        grid.add_springs();
+        Some(grid.symplectic_update(
+            masses,
+            &self.inverse_masses,
+            h,
+            &mut state.positions,
+            &mut state.velocities,
+        ))
     }
 
     /// Acceleration of each particle at state `(x, v)` and time `t`, written into

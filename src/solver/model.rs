@@ -51,6 +51,23 @@ pub struct Model {
     pub springs: Vec<Spring<f64>>,
     /// Surface triangles, as particle indices, counter-clockwise seen from the front.
     pub triangles: Vec<[u32; 3]>,
+    /// The bodies whose springs follow a grid stencil, which a simulation evaluates without
+    /// the spring list.
+    pub grids: Vec<SpringGrid>,
+}
+
+/// A rectangular block of particles whose springs a fixed stencil generates.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SpringGrid {
+    /// Index of particle `(0, 0)`; particle `(i, j)` is `first_particle + j * nx + i`.
+    pub first_particle: usize,
+    /// `[nx, ny]`.
+    pub resolution: [usize; 2],
+    /// The stencil's spring families as offsets `[ai, aj, bi, bj]`: each joins `(i + ai, j + aj)`
+    /// to `(i + bi, j + bj)` for every `(i, j)` where both are on the grid, `i` fastest.
+    pub stencil: Vec<[usize; 4]>,
+    /// The springs the stencil generated, family after family, as a range of the spring list.
+    pub springs: Range<usize>,
 }
 
 impl Model {

@@ -106,15 +106,21 @@ impl<T: Real> Stepper<T> {
         }
     }
 
-    /// Advances `state` by one step of `h` seconds from time `t`.
-    pub fn step(&mut self, state: &mut State<T>, dynamics: &mut Dynamics<T>, t: f64, h: T) {
+    /// Advances `state` by one step of `h` seconds from time `t`. When the step could also sum
+    /// what the stability watch needs over the new state, it returns those sums (`Σ m |v|²` and
+    /// the sum of every position component, in particle order).
+    pub fn step(&mut self, state: &mut State<T>, dynamics: &mut Dynamics<T>, t: f64, h: T) -> Option<(T, T)> {
         match self {
             Self::ExplicitEuler(e) => e.explicit_step(state, dynamics, t, h),
-            Self::SymplecticEuler(e) => e.symplectic_step(state, dynamics, t, h),
+            Self::SymplecticEuler(e) => match dynamics.fused_symplectic_step(state, h) {
+                Some(sums) => return Some(sums),
+                None => e.symplectic_step(state, dynamics, t, h),
+            },
             Self::Verlet(v) => v.step(state, dynamics, t, h),
             Self::Rk4(r) => r.step(state, dynamics, t, h),
             Self::ImplicitEuler(i) => i.step(state, dynamics, t, h),
         }
+        None
     }
 
     /// Tells the integrator that something outside it (a constraint, a contact) changed the
