@@ -19,6 +19,8 @@ pub struct SceneBody {
     pub scene: Scene,
     /// [`fingerprint`] of the document, for idempotency.
     pub fingerprint: u64,
+    /// The document, as the job store keeps it.
+    pub document: Value,
 }
 
 impl<S: Send + Sync> FromRequest<S> for SceneBody {
@@ -48,8 +50,8 @@ impl<S: Send + Sync> FromRequest<S> for SceneBody {
             message: e.to_string(),
         })?;
         let fingerprint = fingerprint(&document);
-        let scene = Scene::from_value(document)?;
-        Ok(Self { scene, fingerprint })
+        let scene = Scene::from_value(document.clone())?;
+        Ok(Self { scene, fingerprint, document })
     }
 }
 

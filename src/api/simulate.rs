@@ -18,6 +18,7 @@ use crate::jobs::{JobId, JobStatus, Jobs, Submission};
 pub async fn simulate(State(state): State<AppState>, body: SceneBody) -> Result<Response, AppError> {
     let submission = Submission {
         scene: body.scene,
+        document: body.document,
         fingerprint: body.fingerprint,
         idempotency_key: None,
         max_work: Some(state.config.simulate_work_budget),

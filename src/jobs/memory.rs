@@ -8,7 +8,9 @@ use std::sync::Mutex;
 
 use async_trait::async_trait;
 
-use super::store::{Inserted, JobStore, Outcome, Page, StoreError, StoredResult};
+use super::store::{
+    CancelRequest, Claimed, Inserted, JobStore, Lease, Outcome, Page, Renewed, StoreError, StoredResult,
+};
 use super::{JobId, JobRecord, JobStatus};
 
 /// Jobs in a map, in submission order.
@@ -28,7 +30,35 @@ struct State {
 
 struct Entry {
     record: JobRecord,
+    scene: String,
+    lease: Option<Lease>,
+    cancel_requested: bool,
     result: Option<StoredResult>,
+}
+
+impl Entry {
+    fn held_by(&self, owner: &str) -> bool {
+        self.record.status == JobStatus::Running && self.lease.as_ref().is_some_and(|l| l.owner == owner)
+    }
+
+    fn claimable(&self, now_ms: u64) -> bool {
+        match self.record.status {
+            JobStatus::Queued => true,
+            JobStatus::Running => self.lease.as_ref().is_none_or(|l| l.until_ms < now_ms),
+            _ => false,
+        }
+    }
+
+    fn end(&mut self, finished_ms: u64, outcome: Outcome) {
+        let record = &mut self.record;
+        record.status = outcome.status;
+        record.finished_ms = Some(finished_ms);
+        record.steps_done = outcome.steps_done;
+        record.message = outcome.message;
+        record.stats = outcome.stats;
+        self.result = outcome.result;
+        self.lease = None;
+    }
 }
 
 impl MemoryStore {
@@ -49,9 +79,23 @@ impl State {
     }
 }
 
+fn cancelled(message: &str) -> Outcome {
+    Outcome {
+        status: JobStatus::Cancelled,
+        steps_done: 0,
+        message: Some(message.to_string()),
+        stats: None,
+        result: None,
+    }
+}
+
 #[async_trait]
 impl JobStore for MemoryStore {
-    async fn insert(&self, job: JobRecord) -> Result<Inserted, StoreError> {
+    fn durable(&self) -> bool {
+        false
+    }
+
+    async fn insert(&self, job: JobRecord, scene: &str) -> Result<Inserted, StoreError> {
         self.with(|s| {
             if let Some(key) = &job.idempotency {
                 if let Some(holder) = s.keys.get(&key.key) {
@@ -61,7 +105,14 @@ impl JobStore for MemoryStore {
             }
             s.order.insert(s.next, job.id.clone());
             s.next += 1;
-            s.jobs.insert(job.id.clone(), Entry { record: job, result: None });
+            let entry = Entry {
+                record: job,
+                scene: scene.to_string(),
+                lease: None,
+                cancel_requested: false,
+                result: None,
+            };
+            s.jobs.insert(entry.record.id.clone(), entry);
             Ok(Inserted::New)
         })
     }
@@ -95,37 +146,107 @@ impl JobStore for MemoryStore {
         }))
     }
 
-    async fn mark_running(&self, id: &JobId, started_ms: u64) -> Result<(), StoreError> {
-        self.with(|s| {
-            let record = &mut s.entry(id)?.record;
+    async fn count_queued(&self) -> Result<u64, StoreError> {
+        Ok(self.with(|s| s.jobs.values().filter(|e| e.record.status == JobStatus::Queued).count() as u64))
+    }
+
+    async fn claim(&self, lease: &Lease, now_ms: u64) -> Result<Option<Claimed>, StoreError> {
+        Ok(self.with(|s| {
+            let id = s.order.values().find(|id| s.jobs[*id].claimable(now_ms))?.clone();
+            let entry = s.jobs.get_mut(&id)?;
+            entry.lease = Some(lease.clone());
+            let record = &mut entry.record;
             record.status = JobStatus::Running;
-            record.started_ms = Some(started_ms);
-            Ok(())
+            record.started_ms = Some(now_ms);
+            record.steps_done = 0;
+            record.attempts += 1;
+            Some(Claimed { record: record.clone(), scene: entry.scene.clone() })
+        }))
+    }
+
+    async fn renew(&self, id: &JobId, lease: &Lease, steps_done: u64) -> Result<Renewed, StoreError> {
+        self.with(|s| {
+            let entry = s.entry(id)?;
+            if !entry.held_by(&lease.owner) {
+                return Ok(Renewed::Lost);
+            }
+            entry.lease = Some(lease.clone());
+            entry.record.steps_done = steps_done;
+            Ok(Renewed::Held { cancel_requested: entry.cancel_requested })
         })
     }
 
-    async fn set_progress(&self, id: &JobId, steps_done: u64) -> Result<(), StoreError> {
+    async fn finish(
+        &self,
+        id: &JobId,
+        owner: &str,
+        finished_ms: u64,
+        outcome: Outcome,
+    ) -> Result<bool, StoreError> {
         self.with(|s| {
-            let record = &mut s.entry(id)?.record;
-            if record.status == JobStatus::Running {
-                record.steps_done = steps_done;
+            let entry = s.entry(id)?;
+            if !entry.held_by(owner) {
+                return Ok(false);
+            }
+            entry.end(finished_ms, outcome);
+            Ok(true)
+        })
+    }
+
+    async fn release(&self, id: &JobId, owner: &str) -> Result<(), StoreError> {
+        self.with(|s| {
+            let entry = s.entry(id)?;
+            if entry.held_by(owner) {
+                entry.lease = None;
+                entry.record.status = JobStatus::Queued;
+                entry.record.steps_done = 0;
             }
             Ok(())
         })
     }
 
-    async fn finish(&self, id: &JobId, finished_ms: u64, outcome: Outcome) -> Result<(), StoreError> {
-        self.with(|s| {
-            let entry = s.entry(id)?;
-            let record = &mut entry.record;
-            record.status = outcome.status;
-            record.finished_ms = Some(finished_ms);
-            record.steps_done = outcome.steps_done;
-            record.message = outcome.message;
-            record.stats = outcome.stats;
-            entry.result = outcome.result;
-            Ok(())
-        })
+    async fn request_cancel(
+        &self,
+        id: &JobId,
+        now_ms: u64,
+        message: &str,
+    ) -> Result<Option<CancelRequest>, StoreError> {
+        Ok(self.with(|s| {
+            let entry = s.jobs.get_mut(id)?;
+            Some(if entry.record.status.is_final() {
+                CancelRequest::AlreadyEnded(entry.record.clone())
+            } else if entry.claimable(now_ms) {
+                entry.end(now_ms, cancelled(message));
+                CancelRequest::Cancelled(entry.record.clone())
+            } else {
+                entry.cancel_requested = true;
+                CancelRequest::Requested(entry.record.clone())
+            })
+        }))
+    }
+
+    async fn cancel_queued(&self, now_ms: u64, message: &str) -> Result<Vec<JobId>, StoreError> {
+        Ok(self.with(|s| {
+            let mut ids = Vec::new();
+            for entry in s.jobs.values_mut().filter(|e| e.record.status == JobStatus::Queued) {
+                entry.end(now_ms, cancelled(message));
+                ids.push(entry.record.id.clone());
+            }
+            ids
+        }))
+    }
+
+    async fn drop_results(&self, before_ms: u64) -> Result<u64, StoreError> {
+        Ok(self.with(|s| {
+            let mut dropped = 0;
+            for entry in s.jobs.values_mut() {
+                if entry.result.is_some() && entry.record.finished_ms.is_some_and(|t| t < before_ms) {
+                    entry.result = None;
+                    dropped += 1;
+                }
+            }
+            dropped
+        }))
     }
 
     async fn result(&self, id: &JobId) -> Result<Option<StoredResult>, StoreError> {

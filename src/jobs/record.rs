@@ -27,6 +27,8 @@ pub struct JobRecord {
     pub stats: Option<serde_json::Value>,
     /// The `Idempotency-Key` it was submitted with, and the fingerprint of its body.
     pub idempotency: Option<Idempotency>,
+    /// How many times a worker started it: more than one if an instance died while running it.
+    pub attempts: u32,
 }
 
 /// The size of a run, worked out from the scene before it is queued.
@@ -74,6 +76,7 @@ impl JobRecord {
             message: None,
             stats: None,
             idempotency,
+            attempts: 0,
         }
     }
 }
