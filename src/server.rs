@@ -1,9 +1,12 @@
 //! Running the HTTP service: bind, serve, and shut down gracefully.
 //!
+//! The job store named by `--store` is opened (and migrated) before the address is printed.
 //! On the shutdown signal the server stops accepting connections and the job system stops
-//! taking jobs: queued jobs are cancelled, running ones get the grace period to finish and are
-//! then cancelled (they stop within one batch of steps). Open requests, such as a `/simulate`
-//! waiting for its job or an event stream, end when their jobs do.
+//! taking jobs: running ones get the grace period to finish. Then, on a durable store, queued
+//! jobs stay queued and those still running go back to the queue for the next instance; on the
+//! memory store both are cancelled (running ones stop within one batch of steps). Open requests,
+//! such as a `/simulate` waiting for its job or an event stream, end when their jobs do or, for
+//! jobs left to the next instance, at once.
 
 use std::future::Future;
 use std::time::Duration;
