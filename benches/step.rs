@@ -40,6 +40,7 @@ fn bench_step<T: Real>(c: &mut Criterion, integrator: IntegratorKind, dt: f64) {
         dt,
         gravity: DVec3::new(0.0, -9.81, 0.0),
         drag: 0.01 * (n * n) as f64,
+        ..Config::default()
     };
     let mut sim = Simulation::<T>::new(&model, &config);
     c.bench_function(&format!("step/cloth{n}/{}/{}", integrator.name(), T::NAME), |b| {

@@ -50,8 +50,8 @@ pub struct Config {
     /// Longest a job may run, in seconds; it is then stopped and marked failed.
     #[arg(long, env = "DRAPE_JOB_WALL_TIME", default_value = "300", value_parser = seconds)]
     pub job_wall_time: Duration,
-    /// Largest run POST /simulate takes, in particle-steps (particles × steps); larger runs get
-    /// 413 and a pointer to POST /jobs.
+    /// Largest run POST /simulate takes, in particle-steps (particles × steps, error-estimate
+    /// companions included); larger runs get 413 and a pointer to POST /jobs.
     #[arg(long, env = "DRAPE_SIMULATE_WORK_BUDGET", default_value_t = ApiConfig::default().simulate_work_budget)]
     pub simulate_work_budget: u64,
     /// Longest time to answer a request, in seconds (408 after); it must cover a /simulate run.
@@ -63,6 +63,9 @@ pub struct Config {
     /// Origins a web page may call from (comma-separated; `*` for any).
     #[arg(long, env = "DRAPE_CORS_ORIGINS", default_value = "*", value_delimiter = ',')]
     pub cors_origins: Vec<String>,
+    /// With `--store memory`: ended jobs kept with their results; older ones are forgotten.
+    #[arg(long, env = "DRAPE_RETAIN_JOBS", default_value_t = crate::jobs::MemoryStore::DEFAULT_RETAIN)]
+    pub retain_jobs: usize,
     /// Seconds running jobs get to finish on SIGINT or SIGTERM before they are cancelled.
     #[arg(long, env = "DRAPE_SHUTDOWN_GRACE", default_value = "30", value_parser = seconds)]
     pub shutdown_grace: Duration,

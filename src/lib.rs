@@ -8,6 +8,8 @@
 //! - [`run`]: runs one compiled scene to a [`run::Recording`]: steps it, records the frames and
 //!   fields asked for, watches for divergence.
 //! - [`output`]: encoders that turn a recording into the bytes a client asked for.
+//! - [`sweep`]: parameter sweeps: variants of a scene at JSON Pointers, run into one table with
+//!   errors, CSV and a work-precision plot.
 //! - [`jobs`]: the queue, the worker threads that run scenes off the async runtime, limits,
 //!   cancellation, progress and the job store.
 //! - [`api`]: the HTTP API over [`jobs`]: routes, problem+json errors, limits, OpenAPI.
@@ -24,3 +26,4 @@ pub mod run;
 pub mod scene;
 pub mod server;
 pub mod solver;
+pub mod sweep;

@@ -1,13 +1,15 @@
-//! The `drape` command: serve the HTTP API, or run a scene from the shell.
+//! The `drape` command: serve the HTTP API, or run a scene or a sweep from the shell.
 
 use std::io::Write;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
+use drape::output::{Format, encode};
 use drape::run::{Control, execute};
 use drape::scene::Scene;
+use drape::sweep::{Sweep, run_locally, write_csv, write_svg};
 
 /// Cloth and mass-spring simulation.
 #[derive(Parser)]
@@ -28,13 +30,39 @@ enum Command {
         /// Write the result here instead of standard output.
         #[arg(short, long)]
         output: Option<PathBuf>,
+        /// Encode the result as json, glb, obj, npy, npz or pc2 (default: the scene's
+        /// `output.format`). npy becomes npz when the scene asks for more than positions.
+        #[arg(short, long)]
+        format: Option<Format>,
+    },
+    /// Runs every variant of a sweep and prints its table (JSON, or CSV with --csv).
+    Sweep {
+        /// The sweep, as a JSON file (`-` reads standard input).
+        sweep: PathBuf,
+        /// Print the table as CSV instead of JSON.
+        #[arg(long)]
+        csv: bool,
+        /// Also write the work-precision plot (error against wall time) as SVG to this file.
+        #[arg(long)]
+        plot: Option<PathBuf>,
+        /// Runs at a time (default: one per core).
+        #[arg(long)]
+        threads: Option<usize>,
+        /// Refuse sweeps with more variants than this.
+        #[arg(long, default_value_t = 1000)]
+        max_variants: u64,
     },
 }
 
 fn main() -> ExitCode {
     match Cli::parse().command {
         Command::Serve(config) => serve(*config),
-        Command::Run { scene, output } => run(&scene, output.as_deref()),
+        Command::Run { scene, output, format } => run(&scene, output.as_deref(), format),
+        Command::Sweep { sweep, csv, plot, threads, max_variants } => {
+            let threads =
+                threads.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
+            run_sweep(&sweep, csv, plot.as_deref(), threads, max_variants)
+        }
     }
 }
 
@@ -64,19 +92,64 @@ fn serve(config: drape::config::Config) -> ExitCode {
     }
 }
 
-fn run(path: &std::path::Path, output: Option<&std::path::Path>) -> ExitCode {
+/// Reads a file, or standard input for `-`.
+fn read_input(path: &Path) -> Result<Vec<u8>, ExitCode> {
     let text = if path.as_os_str() == "-" {
         let mut text = Vec::new();
         std::io::Read::read_to_end(&mut std::io::stdin(), &mut text).map(|_| text)
     } else {
         std::fs::read(path)
     };
-    let text = match text {
+    text.map_err(|e| {
+        eprintln!("drape: cannot read {}: {e}", path.display());
+        ExitCode::from(2)
+    })
+}
+
+fn run_sweep(path: &Path, csv: bool, plot: Option<&Path>, threads: usize, max_variants: u64) -> ExitCode {
+    let text = match read_input(path) {
         Ok(text) => text,
+        Err(code) => return code,
+    };
+    let sweep = match Sweep::from_json(&text, max_variants) {
+        Ok(sweep) => sweep,
         Err(e) => {
-            eprintln!("drape: cannot read {}: {e}", path.display());
+            eprintln!("drape: {} is not a valid sweep:", path.display());
+            match e.field_errors() {
+                [] => eprintln!("  {e}"),
+                errors => errors.iter().for_each(|fe| eprintln!("  {fe}")),
+            }
             return ExitCode::from(2);
         }
+    };
+    let table = run_locally(&sweep, threads);
+    let mut out = std::io::BufWriter::new(std::io::stdout().lock());
+    let printed = if csv {
+        write_csv(&table, &mut out)
+    } else {
+        serde_json::to_writer_pretty(&mut out, &table.to_json())
+            .map_err(std::io::Error::other)
+            .and_then(|_| writeln!(out))
+    };
+    let plotted = match plot {
+        Some(file) => {
+            std::fs::File::create(file).and_then(|f| write_svg(&table, &path.display().to_string(), f))
+        }
+        None => Ok(()),
+    };
+    match printed.and_then(|_| out.flush()).and(plotted) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("drape: cannot write the table: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn run(path: &Path, output: Option<&Path>, format: Option<Format>) -> ExitCode {
+    let text = match read_input(path) {
+        Ok(text) => text,
+        Err(code) => return code,
     };
     let scene = match Scene::from_json(&text) {
         Ok(scene) => scene,
@@ -89,15 +162,22 @@ fn run(path: &std::path::Path, output: Option<&std::path::Path>) -> ExitCode {
             return ExitCode::from(2);
         }
     };
+    let format = format.unwrap_or(scene.output.format);
+    if let Err(problems) = drape::output::check(format, &scene.output) {
+        eprintln!("drape: {} cannot be encoded as {}:", path.display(), format.name());
+        problems.iter().for_each(|fe| eprintln!("  {fe}"));
+        return ExitCode::from(2);
+    }
+    let format = format.for_fields(&scene.output.fields);
     let recording = execute(&scene.compile(), &Control::new());
     let written = match output {
         Some(file) => std::fs::File::create(file)
             .map(std::io::BufWriter::new)
-            .and_then(|mut w| drape::output::write_json(&recording, &mut w).and_then(|_| w.flush())),
+            .and_then(|mut w| encode(&recording, format, &mut w).and_then(|_| w.flush())),
         None => {
             let mut out = std::io::BufWriter::new(std::io::stdout().lock());
-            drape::output::write_json(&recording, &mut out)
-                .and_then(|_| writeln!(out))
+            encode(&recording, format, &mut out)
+                .and_then(|_| if format == Format::Json { writeln!(out) } else { Ok(()) })
                 .and_then(|_| out.flush())
         }
     };

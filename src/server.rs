@@ -23,7 +23,7 @@ pub async fn run(config: Config, shutdown: impl Future<Output = ()> + Send + 'st
     let jobs_config = config.jobs();
     // Workers, the watchdog and the HTTP side each hold a connection at times.
     let connections = u32::try_from(jobs_config.workers).unwrap_or(u32::MAX).saturating_add(4);
-    let store = config.store.open(connections).await.map_err(std::io::Error::other)?;
+    let store = config.store.open(connections, config.retain_jobs).await.map_err(std::io::Error::other)?;
     tracing::info!(store = %config.store, "job store open");
     let jobs = Jobs::start(store, jobs_config);
     // The first line on standard output is the address, for scripts and tests that pick port 0.

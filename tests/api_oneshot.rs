@@ -25,9 +25,10 @@ async fn simulate_returns_the_same_result_as_a_direct_run() {
     let mut expected = Vec::new();
     drape::output::write_json(&direct, &mut expected).unwrap();
     let (mut got, mut want): (Value, Value) = (answer.json(), serde_json::from_slice(&expected).unwrap());
-    // Everything but the measured wall time is identical: runs are deterministic.
+    // Everything but the measured wall times is identical: runs are deterministic.
     for v in [&mut got, &mut want] {
         v["stats"]["wall_time_s"] = Value::Null;
+        v["stats"]["error"]["extra_wall_time_s"] = Value::Null;
     }
     assert_eq!(got, want);
     assert_eq!(got["final"]["positions"].as_array().unwrap().len(), 9);
@@ -60,15 +61,15 @@ async fn a_diverged_run_is_a_successful_answer_about_the_scene() {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn simulate_refuses_runs_over_its_budget_and_points_to_jobs() {
-    let api = ApiConfig { simulate_work_budget: 29, ..ApiConfig::default() };
+    let api = ApiConfig { simulate_work_budget: 44, ..ApiConfig::default() };
     let (_, app) = test_app(jobs_config(), api);
-    // TINY is 3 particles × 10 steps = 30 particle-steps.
+    // TINY is 3 particles × (10 steps + 5 of its error estimate's companion) = 45 particle-steps.
     let answer = post_json(&app, "/simulate", TINY).await;
     assert_eq!(answer.status, 413);
     let problem = answer.problem();
     assert_eq!(problem["type"], "/problems/over-simulate-budget");
     let detail = problem["detail"].as_str().unwrap();
-    assert!(detail.contains("30 particle-steps") && detail.contains("POST /jobs"), "{detail}");
+    assert!(detail.contains("45 particle-steps") && detail.contains("POST /jobs"), "{detail}");
     // The same scene is welcome as a job.
     assert_eq!(post_json(&app, "/jobs", TINY).await.status, 202);
 }
@@ -177,16 +178,19 @@ async fn a_job_over_its_wall_time_fails_with_a_message() {
     let id = post_json(&app, "/jobs", LONG).await.json()["id"].as_str().unwrap().to_string();
     let ended = poll_until(&app, &id, is_final).await;
     assert_eq!(ended["status"], "failed");
+    assert_eq!(ended["failure"], "wall_time");
     let message = ended["message"].as_str().unwrap();
     assert!(message.contains("wall-time limit of 0.05 s"), "{message}");
     assert_eq!(get(&app, &format!("/jobs/{id}/result")).await.status, 409);
-    // Through /simulate, the failure is the server's: a 500 that says why.
+    // Through /simulate, the answer is about the scene: a 422 that says why.
     let api = ApiConfig { simulate_work_budget: u64::MAX, ..ApiConfig::default() };
     let jobs = JobsConfig { wall_time: std::time::Duration::from_millis(50), ..jobs_config() };
     let (_, app) = test_app(jobs, api);
     let answer = post_json(&app, "/simulate", LONG).await;
-    assert_eq!(answer.status, 500);
-    assert!(answer.problem()["detail"].as_str().unwrap().contains("wall-time limit"));
+    assert_eq!(answer.status, 422);
+    let problem = answer.problem();
+    assert_eq!(problem["type"], "/problems/wall-time-exceeded");
+    assert!(problem["detail"].as_str().unwrap().contains("wall-time limit of 0.05 s"), "{problem}");
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -206,6 +210,7 @@ async fn a_panicking_job_fails_alone() {
     let fine = poll_until(&app, fine["id"].as_str().unwrap(), is_final).await;
     assert_eq!(doomed["status"], "failed");
     assert_eq!(doomed["message"], "the simulation panicked: injected failure");
+    assert_eq!(doomed["failure"], "panicked");
     assert_eq!(fine["status"], "succeeded");
     assert_eq!(get(&app, "/healthz").await.status, 200);
 }
@@ -258,7 +263,7 @@ async fn health_metrics_and_openapi_answer() {
         "drape_jobs{status=\"running\"} 0",
         "drape_queue_length 0",
         "drape_running_jobs 0",
-        "drape_particle_steps_total 30",
+        "drape_particle_steps_total 45",
         "drape_http_request_duration_seconds_bucket{le=\"+Inf\"}",
         "drape_http_requests_total{code=\"2xx\"}",
     ] {
@@ -311,4 +316,48 @@ async fn timeouts_and_overload_are_problems() {
     let id = get(&app, "/jobs").await.json()["jobs"][0]["id"].as_str().unwrap().to_string();
     assert_eq!(poll_until(&app, &id, is_final).await["status"], "cancelled");
     jobs.shutdown(std::time::Duration::ZERO).await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn requests_over_the_concurrency_limit_are_shed_with_503() {
+    let api =
+        ApiConfig { max_concurrent_requests: 1, simulate_work_budget: u64::MAX, ..ApiConfig::default() };
+    let (jobs, app) = test_app(jobs_config(), api);
+    let waiting = tokio::spawn({
+        let app = app.clone();
+        async move { post_json(&app, "/simulate", LONG).await }
+    });
+    // The /simulate request holds the only permit while its job runs.
+    while jobs.running() == 0 {
+        tokio::time::sleep(std::time::Duration::from_millis(5)).await;
+    }
+    let shed = get(&app, "/healthz").await;
+    assert_eq!(shed.status, 503);
+    assert_eq!(shed.problem()["type"], "/problems/overloaded");
+
+    let page = drape::jobs::Page { offset: 0, limit: 1 };
+    let id = jobs.list(page).await.unwrap()[0].id.clone();
+    jobs.cancel(&id).await.unwrap();
+    let cancelled = waiting.await.unwrap();
+    assert_eq!(cancelled.status, 409);
+    assert_eq!(cancelled.problem()["type"], "/problems/job-cancelled");
+    assert_eq!(get(&app, "/healthz").await.status, 200);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn results_are_served_in_the_scenes_format() {
+    let (_, app) = test_app(jobs_config(), ApiConfig::default());
+    let scene = TINY.replace(r#""frames": "final""#, r#""frames": "all", "format": "pc2""#);
+    let id = post_json(&app, "/jobs", &scene).await.json()["id"].as_str().unwrap().to_string();
+    assert_eq!(poll_until(&app, &id, is_final).await["status"], "succeeded");
+    let result = get(&app, &format!("/jobs/{id}/result")).await;
+    assert_eq!(result.status, 200);
+    assert_eq!(result.header("content-type"), Some("application/x-pc2"));
+    // PC2: a 32-byte header (magic, version, points, start, sample rate, samples), then
+    // samples × points × 3 little-endian f32.
+    assert_eq!(&result.body[..12], b"POINTCACHE2\0");
+    let points = u32::from_le_bytes(result.body[16..20].try_into().unwrap()) as usize;
+    let samples = u32::from_le_bytes(result.body[28..32].try_into().unwrap()) as usize;
+    assert_eq!(points, 3);
+    assert_eq!(result.body.len(), 32 + samples * points * 12);
 }

@@ -66,7 +66,7 @@ fn cases() -> Vec<Case> {
         scene("array document", "[]", 422, ""),
         scene("string document", r#""a scene""#, 422, ""),
         // Scene fields: unknown, wrong types, out of range.
-        scene("missing duration", r#"{"bodies": [{"type": "chain"}]}"#, 422, ""),
+        scene("missing duration", r#"{"bodies": [{"type": "chain"}]}"#, 422, "/duration"),
         scene("unknown top-level field", &top(r#", "colour": "red""#), 422, "/colour"),
         scene(
             "duration as a string",
@@ -84,6 +84,7 @@ fn cases() -> Vec<Case> {
         scene("verlet damping of 1", &top(r#", "verlet_damping": 1.0"#), 422, "/verlet_damping"),
         scene("tolerance above 1", &top(r#", "solver": {"tolerance": 2}"#), 422, "/solver/tolerance"),
         scene("zero iterations", &top(r#", "solver": {"max_iterations": 0}"#), 422, "/solver/max_iterations"),
+        scene("unknown error estimate", &top(r#", "error_estimate": "exact""#), 422, "/error_estimate"),
         scene("zero rest speed", &top(r#", "stop_at_rest": 0"#), 422, "/stop_at_rest"),
         scene("no bodies", r#"{"duration": 1, "bodies": []}"#, 422, "/bodies"),
         scene("body not an object", &with_body("5"), 422, "/bodies/0"),
@@ -108,7 +109,7 @@ fn cases() -> Vec<Case> {
             422,
             "/bodies/0/velocity/2",
         ),
-        scene("mesh without triangles", &mesh(""), 422, "/bodies/0"),
+        scene("mesh without triangles", &mesh(""), 422, "/bodies/0/triangles"),
         scene("mesh index out of range", &mesh(r#", "triangles": [0, 1, 3]"#), 422, "/bodies/0/triangles/2"),
         scene("zero fps", &top(r#", "output": {"fps": 0}"#), 422, "/output/fps"),
         scene("unknown field name", &top(r#", "output": {"fields": ["colour"]}"#), 422, "/output/fields/0"),

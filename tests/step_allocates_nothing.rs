@@ -1,6 +1,5 @@
 //! Guards the rule that a simulation step allocates nothing: every integrator, both precisions,
-//! on a cloth with gravity, drag and all three spring families, stepped under an allocator that
-//! counts.
+//! on a cloth with every stage a scene can switch on, stepped under an allocator that counts.
 
 // Counting allocations needs a global allocator, which is an unsafe impl; it forwards to the
 // system allocator unchanged.
@@ -38,10 +37,23 @@ unsafe impl GlobalAlloc for Counting {
 #[global_allocator]
 static COUNTING: Counting = Counting;
 
-fn allocations_during_steps<T: Real>(integrator: IntegratorKind) -> usize {
+/// Every stage a scene can switch on: colliders of each shape, wind of both models with gusts,
+/// strain limiting and self-collision.
+const ALL_STAGES: [&str; 3] = [
+    r#""colliders": [{"type": "plane", "point": [0, 0.9, 0], "normal": [0, 1, 0]},
+                     {"type": "sphere", "center": [0, 0.7, 0], "radius": 0.25},
+                     {"type": "box", "center": [0.3, 0.8, 0], "half_extents": [0.1, 0.1, 0.1]},
+                     {"type": "cylinder", "center": [-0.3, 0.8, 0], "radius": 0.1, "height": 0.2}],
+       "wind": {"model": "aerodynamic", "velocity": [2, 0, 1], "gust": {"amplitude": 0.5, "frequency": 1, "wavelength": 1}},
+       "strain_limit": 0.1, "self_collision": {"thickness": 0.01}"#,
+    r#""wind": {"model": "viscous", "velocity": [2, 0, 1]}"#,
+    r#""drag": 0.5"#,
+];
+
+fn allocations_during_steps<T: Real>(integrator: IntegratorKind, stages: &str) -> usize {
     let scene = Scene::from_json(
         format!(
-            r#"{{"duration": 1, "dt": 0.0002, "drag": 0.5, "integrator": "{}",
+            r#"{{"duration": 1, "dt": 0.0002, "integrator": "{}", {stages},
                 "bodies": [{{"type": "cloth", "resolution": [12, 12], "pin": [[0, 0], [11, 0]]}}]}}"#,
             integrator.name()
         )
@@ -50,6 +62,11 @@ fn allocations_during_steps<T: Real>(integrator: IntegratorKind) -> usize {
     .unwrap();
     let compiled = scene.compile();
     let mut simulation = Simulation::<T>::new(&compiled.model, &compiled.config);
+    if stages == ALL_STAGES[0] {
+        for stage in ["wind", "strain_limit", "self_collision", "plane", "sphere", "box", "cylinder"] {
+            assert!(simulation.stages().contains(&stage), "{stage} is not among {:?}", simulation.stages());
+        }
+    }
     simulation.step().unwrap();
     let before = ALLOCATIONS.with(Cell::get);
     for _ in 0..200 {
@@ -59,10 +76,13 @@ fn allocations_during_steps<T: Real>(integrator: IntegratorKind) -> usize {
 }
 
 #[test]
-fn no_integrator_allocates_in_a_step() {
-    for integrator in IntegratorKind::ALL {
-        assert_eq!(allocations_during_steps::<f64>(integrator), 0, "{} in f64", integrator.name());
-        assert_eq!(allocations_during_steps::<f32>(integrator), 0, "{} in f32", integrator.name());
+fn no_stage_of_any_integrator_allocates_in_a_step() {
+    for stages in ALL_STAGES {
+        for integrator in IntegratorKind::ALL {
+            let name = integrator.name();
+            assert_eq!(allocations_during_steps::<f64>(integrator, stages), 0, "{name} in f64 with {stages}");
+            assert_eq!(allocations_during_steps::<f32>(integrator, stages), 0, "{name} in f32 with {stages}");
+        }
     }
     // The counter does count: a run records frames into growing buffers.
     let before = ALLOCATIONS.with(Cell::get);

@@ -10,8 +10,8 @@ use std::sync::Arc;
 
 use bytes::Bytes;
 use drape::jobs::{
-    CancelRequest, Claimed, Idempotency, Inserted, JobId, JobRecord, JobStatus, JobStore, Lease, MemoryStore,
-    Outcome, Page, Plan, PostgresStore, Renewed, SqliteStore, StoredResult,
+    CancelRequest, Claimed, Failure, Idempotency, Inserted, JobId, JobRecord, JobStatus, JobStore, Lease,
+    MemoryStore, Outcome, Page, Plan, PostgresStore, Renewed, SqliteStore, StoredResult,
 };
 use serde_json::json;
 
@@ -42,7 +42,7 @@ const T0: u64 = 1_700_000_000_000;
 const LEASE_MS: u64 = 30_000;
 
 fn plan() -> Plan {
-    Plan { particles: 3, springs: 2, steps: 10, dt: 0.01, duration: 0.1 }
+    Plan { particles: 3, springs: 2, steps: 10, companion_steps: 5, dt: 0.01, duration: 0.1 }
 }
 
 fn job(key: Option<(&str, u64)>) -> JobRecord {
@@ -69,6 +69,7 @@ fn succeeded(steps: u64, bytes: &[u8]) -> Outcome {
         status: JobStatus::Succeeded,
         steps_done: steps,
         message: None,
+        failure: None,
         stats: Some(json!({"steps": steps, "status": "succeeded"})),
         result: Some(StoredResult { media_type: "application/json", bytes: Bytes::copy_from_slice(bytes) }),
     }
@@ -181,6 +182,7 @@ async fn renewals_record_progress_and_carry_cancellation(store: Arc<dyn JobStore
         status: JobStatus::Cancelled,
         steps_done: 6,
         message: Some("cancelled by request".into()),
+        failure: None,
         stats: None,
         result: None,
     };
@@ -267,6 +269,34 @@ async fn results_are_kept_whole_until_their_retention_ends(store: Arc<dyn JobSto
         "the job itself stays"
     );
     assert_eq!(store.result(&new.id).await.unwrap().unwrap().bytes.as_ref(), body.as_bytes());
+
+    // A failure keeps its kind and has no result; a binary result keeps its media type.
+    let (failed, binary) = (add(store).await, add(store).await);
+    claim(store, "a", T0).await.unwrap();
+    claim(store, "a", T0).await.unwrap();
+    let outcome = Outcome {
+        status: JobStatus::Failed,
+        steps_done: 3,
+        message: Some("the job exceeded the wall-time limit".into()),
+        failure: Some(Failure::WallTime),
+        stats: None,
+        result: None,
+    };
+    assert!(store.finish(&failed.id, "a", T0 + 6_000, outcome).await.unwrap());
+    let ended = store.get(&failed.id).await.unwrap().unwrap();
+    assert_eq!(
+        (ended.status, ended.failure, ended.steps_done),
+        (JobStatus::Failed, Some(Failure::WallTime), 3)
+    );
+    assert_eq!(store.result(&failed.id).await.unwrap(), None);
+    let glb: Vec<u8> = (0..=255u8).cycle().take(5000).collect();
+    let outcome = Outcome {
+        result: Some(StoredResult { media_type: "model/gltf-binary", bytes: Bytes::from(glb.clone()) }),
+        ..succeeded(10, b"")
+    };
+    assert!(store.finish(&binary.id, "a", T0 + 6_000, outcome).await.unwrap());
+    let result = store.result(&binary.id).await.unwrap().unwrap();
+    assert_eq!((result.media_type, result.bytes.as_ref()), ("model/gltf-binary", glb.as_slice()));
 }
 
 async fn shutdown_cancels_only_queued_jobs(store: Arc<dyn JobStore>) {

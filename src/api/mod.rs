@@ -3,7 +3,7 @@
 //! [`app`] builds the router from [`routes`], the one list of endpoints that both the router and
 //! the OpenAPI test read. Handlers talk to [`jobs`](crate::jobs), never to the solver. Every
 //! error is an [`AppError`] answered as `application/problem+json`; limits and overload are
-//! layers ([`layers`]) or checks before work starts.
+//! layers (`layers.rs`) or checks before work starts.
 
 mod events;
 mod extract;

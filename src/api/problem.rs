@@ -110,7 +110,15 @@ pub enum AppError {
     ShuttingDown,
     /// 503: the server is handling as many requests as it can.
     Overloaded,
-    /// 500: the job failed (a panic, the wall-time limit); the message says which.
+    /// 422: the run took longer than the job wall-time limit; the scene asks too much of this
+    /// server.
+    TooSlow {
+        /// The job.
+        id: JobId,
+        /// What happened.
+        message: String,
+    },
+    /// 500: the job failed for a reason other than its wall time (a panic); the message says which.
     JobFailed {
         /// The job.
         id: JobId,
@@ -134,7 +142,7 @@ impl AppError {
             }
             Self::BodyTooLarge | Self::OverBudget { .. } => StatusCode::PAYLOAD_TOO_LARGE,
             Self::UnsupportedMediaType { .. } => StatusCode::UNSUPPORTED_MEDIA_TYPE,
-            Self::InvalidScene(_) | Self::OverLimit(_) | Self::KeyReused { .. } => {
+            Self::InvalidScene(_) | Self::OverLimit(_) | Self::KeyReused { .. } | Self::TooSlow { .. } => {
                 StatusCode::UNPROCESSABLE_ENTITY
             }
             Self::QueueFull { .. } => StatusCode::TOO_MANY_REQUESTS,
@@ -197,7 +205,7 @@ impl AppError {
                 "over-simulate-budget",
                 "Too large to run synchronously",
                 format!(
-                    "the run needs {work} particle-steps (particles × steps), over the {budget} that POST /simulate \
+                    "the run needs {work} particle-steps (particles × steps, error-estimate companions included), over the {budget} that POST /simulate \
                      runs while you wait; submit it to POST /jobs instead and fetch /jobs/{{id}}/result"
                 ),
             ),
@@ -235,6 +243,13 @@ impl AppError {
             Self::Overloaded => {
                 ("overloaded", "The server is overloaded", "too many requests at once; retry shortly".into())
             }
+            Self::TooSlow { id, message } => (
+                "wall-time-exceeded",
+                "The run exceeded the wall-time limit",
+                format!(
+                    "job {id} failed: {message}; shorten the run (duration, resolution) or ask for a larger --job-wall-time"
+                ),
+            ),
             Self::JobFailed { id, message } => {
                 ("job-failed", "The job failed", format!("job {id} failed: {message}"))
             }

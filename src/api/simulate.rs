@@ -12,7 +12,7 @@ use super::AppState;
 use super::extract::SceneBody;
 use super::jobs::result_response;
 use super::problem::AppError;
-use crate::jobs::{JobId, JobStatus, Jobs, Submission};
+use crate::jobs::{Failure, JobId, JobStatus, Jobs, Submission};
 
 /// Runs the scene and returns its result; a diverged run is a `200` with `stats.status` `diverged`.
 pub async fn simulate(State(state): State<AppState>, body: SceneBody) -> Result<Response, AppError> {
@@ -40,6 +40,10 @@ pub async fn simulate(State(state): State<AppState>, body: SceneBody) -> Result<
             Ok(response)
         }
         JobStatus::Cancelled => Err(AppError::JobCancelled { id, message: job.message }),
+        JobStatus::Failed if job.failure == Some(Failure::WallTime) => Err(AppError::TooSlow {
+            id,
+            message: job.message.unwrap_or_else(|| "the run exceeded the wall-time limit".into()),
+        }),
         JobStatus::Failed | JobStatus::Queued | JobStatus::Running => Err(AppError::JobFailed {
             id,
             message: job.message.unwrap_or_else(|| format!("ended {}", job.status.name())),

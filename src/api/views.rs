@@ -30,6 +30,9 @@ pub fn job_view(job: &JobRecord) -> Value {
     if let Some(message) = &job.message {
         view["message"] = message.clone().into();
     }
+    if let Some(failure) = job.failure {
+        view["failure"] = failure.name().into();
+    }
     if let Some(stats) = &job.stats {
         view["stats"] = stats.clone();
     }

@@ -4,7 +4,7 @@
 //! within those limits is compiled (which allocates its particles), and its steps and output
 //! size are then checked against the compiled plan. Every refusal names the field to change.
 
-use crate::scene::{Body, Compiled, Field, FieldError, FrameSelection, Scene};
+use crate::scene::{Body, Compiled, ErrorEstimateName, Field, FieldError, FrameSelection, Scene};
 
 use super::Plan;
 
@@ -67,6 +67,7 @@ impl Limits {
             particles: compiled.model.particle_count() as u64,
             springs: compiled.model.springs.len() as u64,
             steps: compiled.steps,
+            companion_steps: companion_steps(&compiled),
             dt: compiled.config.dt,
             duration: compiled.duration,
         };
@@ -96,6 +97,16 @@ impl Limits {
             ));
         }
         if errors.is_empty() { Ok((compiled, plan)) } else { Err(errors) }
+    }
+}
+
+/// Steps of the error estimate's companions: at twice the step, and for `richardson3` also at
+/// four times the step.
+fn companion_steps(compiled: &Compiled) -> u64 {
+    match compiled.error_estimate {
+        ErrorEstimateName::None => 0,
+        ErrorEstimateName::Richardson => compiled.steps / 2,
+        ErrorEstimateName::Richardson3 => compiled.steps / 2 + compiled.steps / 4,
     }
 }
 
@@ -154,7 +165,14 @@ mod tests {
             .admit(&scene(r#"{"duration": 1, "dt": 0.01, "bodies": [{"type": "chain", "count": 5}]}"#))
             .unwrap();
         assert_eq!((plan.particles, plan.springs, plan.steps), (5, 4, 100));
-        assert_eq!(plan.work(), 500);
+        // The default Richardson estimate adds a companion run of 50 steps.
+        assert_eq!((plan.companion_steps, plan.work()), (50, 750));
+        let json =
+            r#"{"duration": 1, "dt": 0.01, "bodies": [{"type": "chain", "count": 5}], "error_estimate": "#;
+        let work = |method: &str| {
+            Limits::default().admit(&scene(&format!("{json}\"{method}\"}}"))).unwrap().1.work()
+        };
+        assert_eq!((work("none"), work("richardson3")), (500, 875));
     }
 
     #[test]

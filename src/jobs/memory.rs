@@ -1,7 +1,8 @@
 //! The in-memory job store: a map behind one mutex, for tests and single-process use.
 //!
-//! Everything is lost when the process ends. The lock is held only to copy a record in or out,
-//! never across an `await`.
+//! Everything is lost when the process ends. Only the most recent ended jobs are kept (with
+//! their results), so memory stays bounded; queued and running jobs are never dropped. The lock
+//! is held only to copy a record in or out, never across an `await`.
 
 use std::collections::{BTreeMap, HashMap};
 use std::sync::Mutex;
@@ -14,13 +15,16 @@ use super::store::{
 use super::{JobId, JobRecord, JobStatus};
 
 /// Jobs in a map, in submission order.
-#[derive(Default)]
 pub struct MemoryStore {
     state: Mutex<State>,
+    /// Ended jobs kept; older ones are forgotten.
+    retain: usize,
 }
 
 #[derive(Default)]
 struct State {
+    /// Jobs that have ended.
+    ended: usize,
     jobs: HashMap<JobId, Entry>,
     /// Submission order: sequence number to id.
     order: BTreeMap<u64, JobId>,
@@ -55,6 +59,7 @@ impl Entry {
         record.finished_ms = Some(finished_ms);
         record.steps_done = outcome.steps_done;
         record.message = outcome.message;
+        record.failure = outcome.failure;
         record.stats = outcome.stats;
         self.result = outcome.result;
         self.lease = None;
@@ -62,9 +67,17 @@ impl Entry {
 }
 
 impl MemoryStore {
-    /// An empty store.
+    /// Ended jobs kept by [`MemoryStore::new`].
+    pub const DEFAULT_RETAIN: usize = 1000;
+
+    /// An empty store that keeps the [`DEFAULT_RETAIN`](Self::DEFAULT_RETAIN) most recent ended jobs.
     pub fn new() -> Self {
-        Self::default()
+        Self::retaining(Self::DEFAULT_RETAIN)
+    }
+
+    /// An empty store that keeps the `retain` most recent ended jobs (at least one).
+    pub fn retaining(retain: usize) -> Self {
+        Self { state: Mutex::default(), retain: retain.max(1) }
     }
 
     fn with<R>(&self, f: impl FnOnce(&mut State) -> R) -> R {
@@ -73,17 +86,49 @@ impl MemoryStore {
     }
 }
 
+impl Default for MemoryStore {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
 impl State {
     fn entry(&mut self, id: &JobId) -> Result<&mut Entry, StoreError> {
         self.jobs.get_mut(id).ok_or_else(|| StoreError::NotFound(id.clone()))
     }
+
+    /// Counts a job that just ended, and forgets the oldest ended jobs until at most `retain`
+    /// are left.
+    fn ended_one(&mut self, retain: usize) {
+        self.ended += 1;
+        let mut excess = self.ended.saturating_sub(retain);
+        let mut evicted = Vec::new();
+        for (&sequence, id) in &self.order {
+            if excess == 0 {
+                break;
+            }
+            if self.jobs[id].record.status.is_final() {
+                evicted.push(sequence);
+                excess -= 1;
+            }
+        }
+        for sequence in evicted {
+            let id = self.order.remove(&sequence).expect("listed in order");
+            let entry = self.jobs.remove(&id).expect("every ordered job is stored");
+            if let Some(key) = entry.record.idempotency {
+                self.keys.remove(&key.key);
+            }
+            self.ended -= 1;
+        }
+    }
 }
 
-fn cancelled(message: &str) -> Outcome {
+fn cancelled(steps_done: u64, message: &str) -> Outcome {
     Outcome {
         status: JobStatus::Cancelled,
-        steps_done: 0,
+        steps_done,
         message: Some(message.to_string()),
+        failure: None,
         stats: None,
         result: None,
     }
@@ -189,6 +234,7 @@ impl JobStore for MemoryStore {
                 return Ok(false);
             }
             entry.end(finished_ms, outcome);
+            s.ended_one(self.retain);
             Ok(true)
         })
     }
@@ -216,8 +262,10 @@ impl JobStore for MemoryStore {
             Some(if entry.record.status.is_final() {
                 CancelRequest::AlreadyEnded(entry.record.clone())
             } else if entry.claimable(now_ms) {
-                entry.end(now_ms, cancelled(message));
-                CancelRequest::Cancelled(entry.record.clone())
+                entry.end(now_ms, cancelled(entry.record.steps_done, message));
+                let record = entry.record.clone();
+                s.ended_one(self.retain);
+                CancelRequest::Cancelled(record)
             } else {
                 entry.cancel_requested = true;
                 CancelRequest::Requested(entry.record.clone())
@@ -229,8 +277,11 @@ impl JobStore for MemoryStore {
         Ok(self.with(|s| {
             let mut ids = Vec::new();
             for entry in s.jobs.values_mut().filter(|e| e.record.status == JobStatus::Queued) {
-                entry.end(now_ms, cancelled(message));
+                entry.end(now_ms, cancelled(0, message));
                 ids.push(entry.record.id.clone());
+            }
+            for _ in &ids {
+                s.ended_one(self.retain);
             }
             ids
         }))
@@ -251,5 +302,53 @@ impl JobStore for MemoryStore {
 
     async fn result(&self, id: &JobId) -> Result<Option<StoredResult>, StoreError> {
         Ok(self.with(|s| s.jobs.get(id).and_then(|e| e.result.clone())))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::jobs::{Idempotency, Plan};
+
+    fn job(key: &str) -> JobRecord {
+        let plan = Plan { particles: 1, springs: 0, steps: 1, companion_steps: 0, dt: 1.0, duration: 1.0 };
+        JobRecord::queued(JobId::new(), plan, Some(Idempotency { key: key.into(), fingerprint: 0 }))
+    }
+
+    fn ended() -> Outcome {
+        Outcome {
+            status: JobStatus::Succeeded,
+            steps_done: 1,
+            message: None,
+            failure: None,
+            stats: None,
+            result: None,
+        }
+    }
+
+    fn block_on<F: std::future::Future>(future: F) -> F::Output {
+        futures_util::FutureExt::now_or_never(future).expect("the memory store never waits")
+    }
+
+    #[test]
+    fn only_the_most_recent_ended_jobs_are_kept() {
+        let store = MemoryStore::retaining(2);
+        let jobs: Vec<JobRecord> = ["a", "b", "c", "d"].map(job).into();
+        let lease = Lease { owner: "me".into(), until_ms: u64::MAX };
+        for j in &jobs {
+            assert_eq!(block_on(store.insert(j.clone(), "{}")).unwrap(), Inserted::New);
+            block_on(store.claim(&lease, 0)).unwrap().unwrap();
+        }
+        // a stays running; b, c and d end in that order, so b is forgotten.
+        for j in &jobs[1..] {
+            assert!(block_on(store.finish(&j.id, "me", 0, ended())).unwrap());
+        }
+        let kept: Vec<JobId> =
+            block_on(store.list(Page { offset: 0, limit: 10 })).unwrap().into_iter().map(|j| j.id).collect();
+        assert_eq!(kept, [jobs[3].id.clone(), jobs[2].id.clone(), jobs[0].id.clone()]);
+        assert!(block_on(store.get(&jobs[1].id)).unwrap().is_none());
+        // The forgotten job's idempotency key is free again.
+        assert!(block_on(store.find_by_key("b")).unwrap().is_none());
+        assert!(block_on(store.find_by_key("c")).unwrap().is_some());
     }
 }

@@ -36,7 +36,7 @@ pub use postgres::PostgresStore;
 pub use record::{Idempotency, JobRecord, Plan, now_ms};
 pub use service::{BeforeRun, Cancelled, Jobs, JobsConfig, Submission, SubmitError, Submitted};
 pub use sqlite::SqliteStore;
-pub use status::JobStatus;
+pub use status::{Failure, JobStatus};
 pub use store::{
     CancelRequest, Claimed, Inserted, JobStore, Lease, Outcome, Page, Renewed, StoreError, StoredResult,
 };

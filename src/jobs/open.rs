@@ -53,10 +53,10 @@ impl fmt::Display for StoreUrl {
 
 impl StoreUrl {
     /// Opens the store, creating and migrating its schema as needed. `connections` bounds a
-    /// PostgreSQL pool.
-    pub async fn open(&self, connections: u32) -> Result<Arc<dyn JobStore>, StoreError> {
+    /// PostgreSQL pool; the memory store keeps the `retain` most recent ended jobs.
+    pub async fn open(&self, connections: u32, retain: usize) -> Result<Arc<dyn JobStore>, StoreError> {
         Ok(match self {
-            Self::Memory => Arc::new(MemoryStore::new()),
+            Self::Memory => Arc::new(MemoryStore::retaining(retain)),
             Self::Sqlite(path) => Arc::new(SqliteStore::open(path).await?),
             Self::Postgres(url) => Arc::new(PostgresStore::open(url, connections).await?),
         })

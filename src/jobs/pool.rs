@@ -19,7 +19,7 @@ use std::time::{Duration, Instant};
 
 use super::service::{IDLE_POLL, Live, Shared};
 use super::store::{Claimed, Outcome, Renewed};
-use super::{JobId, JobStatus, encode_result, now_ms};
+use super::{Failure, JobId, JobStatus, encode_result, now_ms};
 use crate::output::stats_json;
 use crate::run::{Status, execute};
 use crate::scene::{Compiled, Scene};
@@ -85,7 +85,7 @@ fn run_job(shared: &Shared, claimed: Claimed) {
             hook(&compiled);
         }
         let recording = execute(&compiled, &live.control);
-        let encoded = encode_result(&recording);
+        let encoded = encode_result(&recording, &compiled.output);
         Ok((recording.stats, encoded))
     }));
 
@@ -105,25 +105,42 @@ fn run_job(shared: &Shared, claimed: Claimed) {
                 ),
                 Status::Cancelled => (JobStatus::Cancelled, Some(live.cancel_reason())),
             };
-            let result = (status != JobStatus::Failed).then_some(result);
-            Outcome { status, steps_done, message, stats: Some(stats_json(&stats)), result }
+            let failure = (status == JobStatus::Failed).then_some(Failure::WallTime);
+            let result = failure.is_none().then_some(result);
+            Outcome { status, steps_done, message, failure, stats: Some(stats_json(&stats)), result }
         }
-        Ok(Ok((_, Err(e)))) => failed(steps_done, format!("the result could not be encoded: {e}")),
-        Ok(Err(unreadable)) => failed(0, unreadable),
-        Err(panic) => {
-            failed(steps_done, format!("the simulation panicked: {}", panic_message(panic.as_ref())))
+        Ok(Ok((_, Err(e)))) => {
+            failed(steps_done, Failure::Encoding, format!("the result could not be encoded: {e}"))
         }
+        // A scene that was valid when submitted: another instance with other limits, or a newer
+        // drape that reads it differently. Not the client's doing, so it counts as a defect.
+        Ok(Err(unreadable)) => failed(0, Failure::Panicked, unreadable),
+        Err(panic) => failed(
+            steps_done,
+            Failure::Panicked,
+            format!("the simulation panicked: {}", panic_message(panic.as_ref())),
+        ),
     };
     shared.running.fetch_sub(1, Ordering::Relaxed);
     let elapsed = live.started.elapsed();
-    shared.particle_steps.fetch_add(live.plan.particles.saturating_mul(steps_done), Ordering::Relaxed);
+    // Companion runs of the error estimate are counted when the run finished with them.
+    let companions = if outcome.status == JobStatus::Succeeded { live.plan.companion_steps } else { 0 };
+    let work = live.plan.particles.saturating_mul(steps_done.saturating_add(companions));
+    shared.particle_steps.fetch_add(work, Ordering::Relaxed);
     shared.busy_nanos.fetch_add(elapsed.as_nanos() as u64, Ordering::Relaxed);
     tracing::info!(job = %id, status = outcome.status.name(), wall_time_s = elapsed.as_secs_f64(), "job ended");
     shared.finish(id, &live, outcome);
 }
 
-fn failed(steps_done: u64, message: String) -> Outcome {
-    Outcome { status: JobStatus::Failed, steps_done, message: Some(message), stats: None, result: None }
+fn failed(steps_done: u64, failure: Failure, message: String) -> Outcome {
+    Outcome {
+        status: JobStatus::Failed,
+        steps_done,
+        message: Some(message),
+        failure: Some(failure),
+        stats: None,
+        result: None,
+    }
 }
 
 fn panic_message(payload: &(dyn Any + Send)) -> &str {

@@ -2,7 +2,7 @@
 
 use std::time::{SystemTime, UNIX_EPOCH};
 
-use super::{JobId, JobStatus};
+use super::{Failure, JobId, JobStatus};
 
 /// One job as stored.
 #[derive(Clone, Debug, PartialEq)]
@@ -23,6 +23,8 @@ pub struct JobRecord {
     pub steps_done: u64,
     /// Why it failed or was cancelled, in words for a user.
     pub message: Option<String>,
+    /// What kind of failure, for a failed job.
+    pub failure: Option<Failure>,
     /// The result's `stats` object, once it ended with a result.
     pub stats: Option<serde_json::Value>,
     /// The `Idempotency-Key` it was submitted with, and the fingerprint of its body.
@@ -40,6 +42,8 @@ pub struct Plan {
     pub springs: u64,
     /// Steps to take.
     pub steps: u64,
+    /// Steps of the error estimate's companion runs, at coarser steps beside the main run.
+    pub companion_steps: u64,
     /// The step, in seconds.
     pub dt: f64,
     /// Simulated time, in seconds.
@@ -47,9 +51,9 @@ pub struct Plan {
 }
 
 impl Plan {
-    /// Particle-steps: the work of the run.
+    /// Particle-steps: the work of the run, companions included.
     pub fn work(&self) -> u64 {
-        self.particles.saturating_mul(self.steps)
+        self.particles.saturating_mul(self.steps.saturating_add(self.companion_steps))
     }
 }
 
@@ -74,6 +78,7 @@ impl JobRecord {
             plan,
             steps_done: 0,
             message: None,
+            failure: None,
             stats: None,
             idempotency,
             attempts: 0,

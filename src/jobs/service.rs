@@ -332,6 +332,18 @@ impl Jobs {
             }
         }
 
+        // A full queue refuses before any work.
+        let shared = &self.shared;
+        if shared.stopped.load(Ordering::Relaxed) {
+            return Err(SubmitError::ShuttingDown);
+        }
+        let admitting = Admitting::enter(&shared.admitting);
+        let queued = shared.store.count_queued().await?;
+        if queued.saturating_add(admitting.others as u64) >= shared.config.queue_capacity as u64 {
+            return Err(SubmitError::QueueFull);
+        }
+        // Admission counts particles and springs, then compiles (which allocates them), so it
+        // runs off the async threads.
         let limits = *self.limits();
         let plan = tokio::task::spawn_blocking(move || limits.admit(&scene).map(|(_, plan)| plan))
             .await
@@ -343,15 +355,6 @@ impl Jobs {
             }
         }
 
-        let shared = &self.shared;
-        if shared.stopped.load(Ordering::Relaxed) {
-            return Err(SubmitError::ShuttingDown);
-        }
-        let admitting = Admitting::enter(&shared.admitting);
-        let queued = shared.store.count_queued().await?;
-        if queued.saturating_add(admitting.others as u64) >= shared.config.queue_capacity as u64 {
-            return Err(SubmitError::QueueFull);
-        }
         let id = JobId::new();
         let record = JobRecord::queued(id.clone(), plan, idempotency.clone());
         match shared.store.insert(record.clone(), &document.to_string()).await? {

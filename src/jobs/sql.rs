@@ -17,11 +17,11 @@ use flate2::read::DeflateDecoder;
 use flate2::write::DeflateEncoder;
 
 use super::store::StoreError;
-use super::{Idempotency, JobId, JobRecord, JobStatus, Plan};
+use super::{Failure, Idempotency, JobId, JobRecord, JobStatus, Plan};
 
 /// The columns of a job as [`JobRow`] reads them.
-pub(super) const COLUMNS: &str = "id, status, created_ms, started_ms, finished_ms, particles, springs, steps, dt, \
-     duration, steps_done, message, stats, idem_key, idem_fingerprint, attempts";
+pub(super) const COLUMNS: &str = "id, status, created_ms, started_ms, finished_ms, particles, springs, steps, \
+     companion_steps, dt, duration, steps_done, message, failure, stats, idem_key, idem_fingerprint, attempts";
 
 /// The statements of a backend, with its placeholders.
 pub(super) struct Statements {
@@ -64,8 +64,9 @@ impl Statements {
         let ended = "scene = NULL, lease_owner = NULL, lease_until_ms = NULL";
         Self {
             insert: placeholders(
-                "INSERT INTO jobs (id, status, created_ms, particles, springs, steps, dt, duration, \
-                 idem_key, idem_fingerprint, scene) VALUES ($1, 'queued', $2, $3, $4, $5, $6, $7, $8, $9, $10) \
+                "INSERT INTO jobs (id, status, created_ms, particles, springs, steps, companion_steps, dt, \
+                 duration, idem_key, idem_fingerprint, scene) \
+                 VALUES ($1, 'queued', $2, $3, $4, $5, $11, $6, $7, $8, $9, $10) \
                  ON CONFLICT (idem_key) DO NOTHING"
                     .into(),
             ),
@@ -86,8 +87,8 @@ impl Statements {
                     .into(),
             ),
             finish: placeholders(format!(
-                "UPDATE jobs SET status = $1, finished_ms = $2, steps_done = $3, message = $4, stats = $5, {ended} \
-                 WHERE id = $6 AND status = 'running' AND lease_owner = $7"
+                "UPDATE jobs SET status = $1, finished_ms = $2, steps_done = $3, message = $4, stats = $5, \
+                 failure = $8, {ended} WHERE id = $6 AND status = 'running' AND lease_owner = $7"
             )),
             store_result: placeholders(
                 "INSERT INTO results (job_id, media_type, body, finished_ms) VALUES ($1, $2, $3, $4)".into(),
@@ -126,10 +127,12 @@ pub(super) struct JobRow {
     particles: i64,
     springs: i64,
     steps: i64,
+    companion_steps: i64,
     dt: f64,
     duration: f64,
     steps_done: i64,
     message: Option<String>,
+    failure: Option<String>,
     stats: Option<String>,
     idem_key: Option<String>,
     idem_fingerprint: Option<i64>,
@@ -156,6 +159,15 @@ impl JobRow {
             .map(|text| serde_json::from_str(&text))
             .transpose()
             .map_err(|e| corrupt(format!("stats that are not JSON ({e})")))?;
+        let failure = self
+            .failure
+            .map(|name| {
+                Failure::ALL
+                    .into_iter()
+                    .find(|f| f.name() == name)
+                    .ok_or_else(|| corrupt(format!("a failure `{name}`")))
+            })
+            .transpose()?;
         let idempotency = match (self.idem_key, self.idem_fingerprint) {
             (Some(key), Some(fingerprint)) => Some(Idempotency { key, fingerprint: fingerprint as u64 }),
             _ => None,
@@ -170,11 +182,13 @@ impl JobRow {
                 particles: self.particles as u64,
                 springs: self.springs as u64,
                 steps: self.steps as u64,
+                companion_steps: self.companion_steps as u64,
                 dt: self.dt,
                 duration: self.duration,
             },
             steps_done: self.steps_done as u64,
             message: self.message,
+            failure,
             stats,
             idempotency,
             attempts: u32::try_from(self.attempts).unwrap_or(u32::MAX),
@@ -215,8 +229,9 @@ pub(super) fn decompress(bytes: &[u8]) -> Result<Bytes, StoreError> {
 ///
 /// [`StoredResult`]: super::StoredResult
 pub(super) fn media_type(text: &str) -> Result<&'static str, StoreError> {
-    ["application/json"]
+    crate::output::Format::ALL
         .into_iter()
+        .map(crate::output::Format::media_type)
         .find(|known| *known == text)
         .ok_or_else(|| corrupt(format!("a result of unknown media type `{text}`")))
 }
@@ -248,6 +263,7 @@ macro_rules! sql_store {
                     .bind(job.idempotency.as_ref().map(|i| i.key.clone()))
                     .bind(job.idempotency.as_ref().map(|i| int(i.fingerprint)))
                     .bind(scene)
+                    .bind(int(plan.companion_steps))
                     .execute(&self.pool)
                     .await
                     .map_err(backend)?;
@@ -399,6 +415,7 @@ macro_rules! sql_store {
                     .bind(outcome.stats.map(|s| s.to_string()))
                     .bind(id.as_str())
                     .bind(owner)
+                    .bind(outcome.failure.map(|f| f.name()))
                     .execute(&mut *tx)
                     .await
                     .map_err(backend)?;

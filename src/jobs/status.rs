@@ -42,3 +42,29 @@ impl JobStatus {
         !matches!(self, Self::Queued | Self::Running)
     }
 }
+
+/// Why a job failed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Failure {
+    /// It ran longer than the wall-time limit: the scene asks for more than this server gives.
+    WallTime,
+    /// The simulation panicked: a defect in drape.
+    Panicked,
+    /// The result could not be encoded.
+    Encoding,
+}
+
+impl Failure {
+    /// Every kind of failure.
+    pub const ALL: [Self; 3] = [Self::WallTime, Self::Panicked, Self::Encoding];
+
+    /// The name the contract uses.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::WallTime => "wall_time",
+            Self::Panicked => "panicked",
+            Self::Encoding => "encoding",
+        }
+    }
+}

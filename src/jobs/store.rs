@@ -16,7 +16,7 @@ use async_trait::async_trait;
 use bytes::Bytes;
 use thiserror::Error;
 
-use super::{JobId, JobRecord, JobStatus};
+use super::{Failure, JobId, JobRecord, JobStatus};
 
 /// A stored result: the encoded bytes and their media type.
 #[derive(Clone, Debug, PartialEq)]
@@ -36,6 +36,8 @@ pub struct Outcome {
     pub steps_done: u64,
     /// Why it failed or was cancelled.
     pub message: Option<String>,
+    /// What kind of failure, for a failed job.
+    pub failure: Option<Failure>,
     /// The result's `stats` object.
     pub stats: Option<serde_json::Value>,
     /// The encoded result, if the job ended with one.

@@ -102,7 +102,8 @@ where
     let finished = status == Status::Succeeded;
     let stable_dt = simulation.stable_dt();
     let mut stages: Vec<&'static str> = simulation.stages().to_vec();
-    if compiled.output.fields.contains(&Field::Normals) && !compiled.model.triangles.is_empty() {
+    let wants_normals = compiled.output.fields.contains(&Field::Normals);
+    if wants_normals && !compiled.model.triangles.is_empty() && !stages.contains(&"normals") {
         stages.push("normals");
     }
     let stats = Stats {

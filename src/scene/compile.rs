@@ -10,10 +10,10 @@
 use glam::DVec3;
 
 use super::types::{
-    Body, ErrorEstimateName, FrameSelection, IntegratorName, OrientationName, Output, Precision, Scene,
-    SpringSpec,
+    Body, ColliderSpec, ErrorEstimateName, FrameSelection, IntegratorName, OrientationName, Output,
+    Precision, Scene, SpringSpec, WindModelName, WindSpec,
 };
-use crate::solver::{self, IntegratorKind, IntegratorSettings, Model, SpringParams};
+use crate::solver::{self, Collider, IntegratorKind, IntegratorSettings, Model, Shape, SpringParams};
 
 /// Where a run's step came from.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -140,6 +140,10 @@ impl Scene {
             dt: self.duration / steps as f64,
             gravity: DVec3::from_array(self.gravity),
             drag: self.drag,
+            wind: self.wind.as_ref().map(wind),
+            colliders: self.colliders.iter().map(collider).collect(),
+            strain_limit: self.strain_limit,
+            self_collision: self.self_collision.map(|s| s.thickness),
         };
         Compiled {
             model,
@@ -165,6 +169,36 @@ impl Scene {
             (_, Some(h)) => h,
         };
         dt.min(self.duration)
+    }
+}
+
+fn collider(spec: &ColliderSpec) -> Collider {
+    let v = DVec3::from_array;
+    let shape = match *spec {
+        ColliderSpec::Plane(c) => Shape::Plane { point: v(c.point), normal: v(c.normal) },
+        ColliderSpec::Sphere(c) => Shape::Sphere { center: v(c.center), radius: c.radius },
+        ColliderSpec::Box(c) => Shape::Box { center: v(c.center), half_extents: v(c.half_extents) },
+        ColliderSpec::Cylinder(c) => {
+            Shape::Cylinder { center: v(c.center), radius: c.radius, height: c.height }
+        }
+    };
+    let (friction, restitution) = spec.surface();
+    Collider { shape, friction, restitution }
+}
+
+fn wind(spec: &WindSpec) -> solver::WindConfig {
+    solver::WindConfig {
+        model: match spec.model {
+            WindModelName::Viscous => solver::WindModel::Viscous,
+            WindModelName::Aerodynamic => solver::WindModel::Aerodynamic,
+        },
+        velocity: DVec3::from_array(spec.velocity),
+        coefficient: spec.coefficient,
+        gust: spec.gust.map(|g| solver::Gust {
+            amplitude: g.amplitude,
+            frequency: g.frequency,
+            wavelength: g.wavelength,
+        }),
     }
 }
 

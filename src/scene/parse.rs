@@ -1,14 +1,14 @@
 //! Reading a scene from JSON, with every type error placed by JSON Pointer.
 //!
-//! The top level is read first with bodies left as raw JSON; each body is then read by its
-//! `type` into its own struct. Reading in two steps keeps the path of an error inside a body
+//! The top level is read first with bodies and colliders left as raw JSON; each is then read by
+//! its `type` into its own struct. Reading in two steps keeps the path of an error inside a body
 //! exact, which an internally tagged enum would lose.
 
 use serde::de::DeserializeOwned;
 use serde_json::Value;
 
 use super::error::{FieldError, SceneError};
-use super::types::{Body, RawScene, Scene};
+use super::types::{Body, ColliderSpec, RawScene, Scene};
 
 impl Scene {
     /// Parses and validates a scene from JSON text.
@@ -32,6 +32,13 @@ impl Scene {
                 Err(e) => errors.push(e),
             }
         }
+        let mut colliders = Vec::with_capacity(raw.colliders.len());
+        for (index, collider) in raw.colliders.into_iter().enumerate() {
+            match read_collider(&format!("/colliders/{index}"), collider) {
+                Ok(collider) => colliders.push(collider),
+                Err(e) => errors.push(e),
+            }
+        }
         if !errors.is_empty() {
             return Err(SceneError::Invalid(errors));
         }
@@ -47,6 +54,10 @@ impl Scene {
             stop_at_rest: raw.stop_at_rest,
             error_estimate: raw.error_estimate,
             bodies,
+            colliders,
+            wind: raw.wind,
+            self_collision: raw.self_collision,
+            strain_limit: raw.strain_limit,
             output: raw.output,
         };
         let errors = scene.problems();
@@ -55,21 +66,36 @@ impl Scene {
 }
 
 const BODY_TYPES: &str = "`cloth`, `chain`, `lattice` or `mesh`";
+const COLLIDER_TYPES: &str = "`plane`, `sphere`, `box` or `cylinder`";
+
+/// Takes the `type` out of an object that must have one.
+fn take_type(pointer: &str, value: &mut Value, what: &str, types: &str) -> Result<String, FieldError> {
+    let Some(object) = value.as_object_mut() else {
+        return Err(FieldError::new(pointer, format!("{what} must be a JSON object with a `type`")));
+    };
+    match object.remove("type") {
+        Some(Value::String(kind)) => Ok(kind),
+        Some(_) => Err(FieldError::new(format!("{pointer}/type"), format!("must be a string: {types}"))),
+        None => Err(FieldError::new(format!("{pointer}/type"), format!("missing: {types}"))),
+    }
+}
+
+fn read_collider(pointer: &str, mut value: Value) -> Result<ColliderSpec, FieldError> {
+    let kind = take_type(pointer, &mut value, "a collider", COLLIDER_TYPES)?;
+    match kind.as_str() {
+        "plane" => read(pointer, value).map(ColliderSpec::Plane),
+        "sphere" => read(pointer, value).map(ColliderSpec::Sphere),
+        "box" => read(pointer, value).map(ColliderSpec::Box),
+        "cylinder" => read(pointer, value).map(ColliderSpec::Cylinder),
+        other => Err(FieldError::new(
+            format!("{pointer}/type"),
+            format!("unknown collider type `{other}`: expected {COLLIDER_TYPES}"),
+        )),
+    }
+}
 
 fn read_body(pointer: &str, mut value: Value) -> Result<Body, FieldError> {
-    let Some(object) = value.as_object_mut() else {
-        return Err(FieldError::new(pointer, "a body must be a JSON object with a `type`"));
-    };
-    let kind = match object.remove("type") {
-        Some(Value::String(kind)) => kind,
-        Some(_) => {
-            return Err(FieldError::new(
-                format!("{pointer}/type"),
-                format!("must be a string: {BODY_TYPES}"),
-            ));
-        }
-        None => return Err(FieldError::new(format!("{pointer}/type"), format!("missing: {BODY_TYPES}"))),
-    };
+    let kind = take_type(pointer, &mut value, "a body", BODY_TYPES)?;
     match kind.as_str() {
         "cloth" => read(pointer, value).map(Body::Cloth),
         "chain" => read(pointer, value).map(Body::Chain),

@@ -27,6 +27,15 @@ pub struct Scene {
     pub error_estimate: ErrorEstimateName,
     /// The bodies, in order; particle indices in results run over them in this order.
     pub bodies: Vec<Body>,
+    /// Fixed shapes the particles cannot enter, resolved in this order (default none).
+    pub colliders: Vec<ColliderSpec>,
+    /// Wind on the bodies' surfaces (default none).
+    pub wind: Option<WindSpec>,
+    /// Keeps particles that no spring joins apart (default off).
+    pub self_collision: Option<SelfCollisionSpec>,
+    /// The largest strain `(l - L) / L` any spring may end a step with, a positive fraction
+    /// (default: no limit).
+    pub strain_limit: Option<f64>,
     /// What to record and how to encode it.
     pub output: Output,
 }
@@ -55,6 +64,14 @@ pub(super) struct RawScene {
     #[serde(default)]
     pub error_estimate: ErrorEstimateName,
     pub bodies: Vec<serde_json::Value>,
+    #[serde(default)]
+    pub colliders: Vec<serde_json::Value>,
+    #[serde(default)]
+    pub wind: Option<WindSpec>,
+    #[serde(default)]
+    pub self_collision: Option<SelfCollisionSpec>,
+    #[serde(default)]
+    pub strain_limit: Option<f64>,
     #[serde(default)]
     pub output: Output,
 }
@@ -421,6 +438,184 @@ fn default_mesh_mass() -> f64 {
     0.5
 }
 
+/// A collider, by its `type`. Each has `friction` (Coulomb μ, at least 0; default 0.3) and
+/// `restitution` (in [0, 1]; default 0).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ColliderSpec {
+    /// A plane; the side behind its normal is solid.
+    Plane(PlaneSpec),
+    /// A solid ball.
+    Sphere(SphereSpec),
+    /// A solid axis-aligned box.
+    Box(BoxSpec),
+    /// A solid cylinder with its axis along y (a round table).
+    Cylinder(CylinderSpec),
+}
+
+impl ColliderSpec {
+    /// The `type` as the JSON spells it.
+    pub fn type_name(&self) -> &'static str {
+        match self {
+            Self::Plane(_) => "plane",
+            Self::Sphere(_) => "sphere",
+            Self::Box(_) => "box",
+            Self::Cylinder(_) => "cylinder",
+        }
+    }
+
+    /// Friction and restitution.
+    pub fn surface(&self) -> (f64, f64) {
+        match self {
+            Self::Plane(c) => (c.friction, c.restitution),
+            Self::Sphere(c) => (c.friction, c.restitution),
+            Self::Box(c) => (c.friction, c.restitution),
+            Self::Cylinder(c) => (c.friction, c.restitution),
+        }
+    }
+}
+
+fn default_friction() -> f64 {
+    crate::solver::DEFAULT_FRICTION
+}
+
+/// A plane collider: the floor by default.
+#[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PlaneSpec {
+    /// A point on the plane, in metres (default `[0, 0, 0]`).
+    #[serde(default)]
+    pub point: [f64; 3],
+    /// The side particles stay on; any length but zero (default `[0, 1, 0]`).
+    #[serde(default = "default_up")]
+    pub normal: [f64; 3],
+    /// Coulomb friction μ (default 0.3).
+    #[serde(default = "default_friction")]
+    pub friction: f64,
+    /// Restitution, in [0, 1] (default 0).
+    #[serde(default)]
+    pub restitution: f64,
+}
+
+fn default_up() -> [f64; 3] {
+    [0.0, 1.0, 0.0]
+}
+
+/// A sphere collider.
+#[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SphereSpec {
+    /// Centre, in metres (required).
+    pub center: [f64; 3],
+    /// Radius, in metres (required, positive).
+    pub radius: f64,
+    /// Coulomb friction μ (default 0.3).
+    #[serde(default = "default_friction")]
+    pub friction: f64,
+    /// Restitution, in [0, 1] (default 0).
+    #[serde(default)]
+    pub restitution: f64,
+}
+
+/// An axis-aligned box collider.
+#[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BoxSpec {
+    /// Centre, in metres (required).
+    pub center: [f64; 3],
+    /// Half its size along x, y and z, in metres (required, each positive).
+    pub half_extents: [f64; 3],
+    /// Coulomb friction μ (default 0.3).
+    #[serde(default = "default_friction")]
+    pub friction: f64,
+    /// Restitution, in [0, 1] (default 0).
+    #[serde(default)]
+    pub restitution: f64,
+}
+
+/// A cylinder collider with its axis along y.
+#[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CylinderSpec {
+    /// The middle of its axis, in metres (required); the top is at `center[1] + height / 2`.
+    pub center: [f64; 3],
+    /// Radius, in metres (required, positive).
+    pub radius: f64,
+    /// Height, in metres (required, positive).
+    pub height: f64,
+    /// Coulomb friction μ (default 0.3).
+    #[serde(default = "default_friction")]
+    pub friction: f64,
+    /// Restitution, in [0, 1] (default 0).
+    #[serde(default)]
+    pub restitution: f64,
+}
+
+/// How wind turns into forces.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum WindModelName {
+    /// Per vertex, `c [n·(u - v)] n`, `c` in N·s/m.
+    Viscous,
+    /// Per triangle, area-weighted, `c A [n·(u - v̄)] n`, `c` in N·s/m³ (the default).
+    #[default]
+    Aerodynamic,
+}
+
+/// Wind.
+#[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct WindSpec {
+    /// The force model (default `aerodynamic`).
+    #[serde(default)]
+    pub model: WindModelName,
+    /// The air's mean velocity, in m/s (required).
+    pub velocity: [f64; 3],
+    /// The drag coefficient `c`, at least 0 (default 1).
+    #[serde(default = "default_wind_coefficient")]
+    pub coefficient: f64,
+    /// Variation in space and time (default none: steady wind).
+    #[serde(default)]
+    pub gust: Option<GustSpec>,
+}
+
+fn default_wind_coefficient() -> f64 {
+    1.0
+}
+
+/// A gust: the wind scaled by `1 + amplitude · sin(2π (frequency · t - x·ŵ / wavelength))`.
+#[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct GustSpec {
+    /// Relative amplitude, in [0, 1] (default 0.5).
+    pub amplitude: f64,
+    /// Frequency, in Hz, at least 0 (default 1).
+    pub frequency: f64,
+    /// Wavelength along the wind, in metres, positive (default 2).
+    pub wavelength: f64,
+}
+
+impl Default for GustSpec {
+    fn default() -> Self {
+        Self { amplitude: 0.5, frequency: 1.0, wavelength: 2.0 }
+    }
+}
+
+/// Self-collision.
+#[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct SelfCollisionSpec {
+    /// Half the distance particles that no spring joins keep apart, in metres, positive
+    /// (default 0.005). Keep `2 · thickness` below the distance of particles two apart in a
+    /// grid, which no spring joins.
+    pub thickness: f64,
+}
+
+impl Default for SelfCollisionSpec {
+    fn default() -> Self {
+        Self { thickness: 0.005 }
+    }
+}
+
 /// What a run records and how it is encoded.
 #[derive(Clone, Debug, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -470,11 +665,81 @@ pub enum Field {
     Strain,
 }
 
-/// Encodings of a result.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize)]
+impl Field {
+    /// Every field, in the order results list them.
+    pub const ALL: [Field; 5] =
+        [Field::Positions, Field::Velocities, Field::Normals, Field::Energy, Field::Strain];
+
+    /// The name the contract uses.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Positions => "positions",
+            Self::Velocities => "velocities",
+            Self::Normals => "normals",
+            Self::Energy => "energy",
+            Self::Strain => "strain",
+        }
+    }
+}
+
+/// Encodings of a result, and the fields each can carry.
+///
+/// JSON carries everything. The mesh formats (glTF binary, OBJ) carry positions and normals; NPY
+/// is one array of positions, NPZ one array per field; PC2 is a point cache of positions. Every
+/// format but JSON and NPZ needs positions, and every format but JSON needs a frame to encode.
+/// Media types and the negotiation with a client live in `output::format`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Format {
     /// JSON (the default).
     #[default]
     Json,
+    /// glTF 2.0 binary: one node and mesh per body, the motion as morph targets.
+    Glb,
+    /// Wavefront OBJ: the last frame's mesh.
+    Obj,
+    /// A NumPy array of positions, frames × particles × 3. With more fields asked, NPZ.
+    Npy,
+    /// A NumPy archive: one array per field, plus `times`.
+    Npz,
+    /// A PC2 point cache of positions.
+    Pc2,
+}
+
+impl Format {
+    /// Every format, in the order the contract lists them.
+    pub const ALL: [Format; 6] =
+        [Format::Json, Format::Glb, Format::Obj, Format::Npy, Format::Npz, Format::Pc2];
+
+    /// The name the contract uses (`output.format`, `?format=`, `--format`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Json => "json",
+            Self::Glb => "glb",
+            Self::Obj => "obj",
+            Self::Npy => "npy",
+            Self::Npz => "npz",
+            Self::Pc2 => "pc2",
+        }
+    }
+
+    /// Whether this format can carry `field`.
+    pub fn carries(self, field: Field) -> bool {
+        match self {
+            Self::Json | Self::Npz => true,
+            Self::Glb | Self::Obj => matches!(field, Field::Positions | Field::Normals),
+            Self::Npy | Self::Pc2 => field == Field::Positions,
+        }
+    }
+
+    /// Whether this format has nothing to say without positions.
+    pub fn needs_positions(self) -> bool {
+        !matches!(self, Self::Json | Self::Npz)
+    }
+
+    /// The format actually sent for `fields`: NPY becomes NPZ when more than positions are asked;
+    /// every other format stays as it is.
+    pub fn for_fields(self, fields: &[Field]) -> Format {
+        if self == Self::Npy && fields.iter().any(|&f| f != Field::Positions) { Self::Npz } else { self }
+    }
 }

@@ -2,7 +2,9 @@
 //! indices in range.
 
 use super::error::FieldError;
-use super::types::{Body, GridSprings, Scene, SpringSpec};
+use super::types::{
+    Body, ColliderSpec, Field, Format, FrameSelection, GridSprings, Output, Scene, SpringSpec, WindSpec,
+};
 
 /// Collects problems, each at its JSON Pointer.
 struct Problems(Vec<FieldError>);
@@ -114,13 +116,64 @@ impl Scene {
         for (index, body) in self.bodies.iter().enumerate() {
             body_problems(&mut p, &format!("/bodies/{index}"), body);
         }
+        for (index, collider) in self.colliders.iter().enumerate() {
+            collider_problems(&mut p, &format!("/colliders/{index}"), collider);
+        }
+        if let Some(wind) = &self.wind {
+            wind_problems(&mut p, wind);
+        }
+        if let Some(self_collision) = &self.self_collision {
+            p.positive("/self_collision/thickness", self_collision.thickness);
+        }
+        if let Some(limit) = self.strain_limit {
+            p.positive("/strain_limit", limit);
+        }
         p.positive("/output/fps", self.output.fps);
         for (i, field) in self.output.fields.iter().enumerate() {
             if self.output.fields[..i].contains(field) {
                 p.add(format!("/output/fields/{i}"), "listed twice");
             }
         }
+        p.0.extend(self.output.format_problems(self.output.format));
         p.0
+    }
+}
+
+impl Output {
+    /// Why this output cannot be encoded as `format`, each problem at its JSON Pointer: a field
+    /// asked for that the format cannot carry (at `/output/fields/i`), positions missing where
+    /// the format needs them, or no frame to encode. Empty when it can.
+    pub fn format_problems(&self, format: Format) -> Vec<FieldError> {
+        let sent = format.for_fields(&self.fields);
+        let mut problems = Vec::new();
+        for (i, &field) in self.fields.iter().enumerate() {
+            if !sent.carries(field) {
+                let carriers: Vec<&str> =
+                    Format::ALL.iter().filter(|f| f.carries(field)).map(|f| f.name()).collect();
+                problems.push(FieldError::new(
+                    format!("/output/fields/{i}"),
+                    format!(
+                        "format {} cannot carry {}; {} can",
+                        format.name(),
+                        field.name(),
+                        carriers.join(", ")
+                    ),
+                ));
+            }
+        }
+        if sent.needs_positions() && !self.fields.contains(&Field::Positions) {
+            problems.push(FieldError::new(
+                "/output/fields",
+                format!("format {} needs positions among the fields", format.name()),
+            ));
+        }
+        if format != Format::Json && self.frames == FrameSelection::None {
+            problems.push(FieldError::new(
+                "/output/frames",
+                format!("format {} needs a frame to encode; frames none keeps none", format.name()),
+            ));
+        }
+        problems
     }
 }
 
@@ -202,5 +255,48 @@ fn mesh_problems(p: &mut Problems, at: &str, m: &super::types::MeshSpec) {
             field("vertices"),
             format!("vertex {v} is on no triangle of positive area, so it would have no mass"),
         );
+    }
+}
+
+fn collider_problems(p: &mut Problems, at: &str, collider: &ColliderSpec) {
+    let field = |name: &str| format!("{at}/{name}");
+    match collider {
+        ColliderSpec::Plane(c) => {
+            p.finite(&field("point"), &c.point);
+            if p.finite(&field("normal"), &c.normal) && c.normal.iter().all(|&n| n == 0.0) {
+                p.add(field("normal"), "must not be the zero vector");
+            }
+        }
+        ColliderSpec::Sphere(c) => {
+            p.finite(&field("center"), &c.center);
+            p.positive(&field("radius"), c.radius);
+        }
+        ColliderSpec::Box(c) => {
+            p.finite(&field("center"), &c.center);
+            p.all_positive(&field("half_extents"), &c.half_extents);
+        }
+        ColliderSpec::Cylinder(c) => {
+            p.finite(&field("center"), &c.center);
+            p.positive(&field("radius"), c.radius);
+            p.positive(&field("height"), c.height);
+        }
+    }
+    let (friction, restitution) = collider.surface();
+    p.non_negative(&field("friction"), friction);
+    if p.finite(&field("restitution"), &[restitution]) && !(0.0..=1.0).contains(&restitution) {
+        p.add(field("restitution"), format!("must be in [0, 1], got {restitution}"));
+    }
+}
+
+fn wind_problems(p: &mut Problems, wind: &WindSpec) {
+    p.finite("/wind/velocity", &wind.velocity);
+    p.non_negative("/wind/coefficient", wind.coefficient);
+    if let Some(gust) = &wind.gust {
+        let amplitude = gust.amplitude;
+        if p.finite("/wind/gust/amplitude", &[amplitude]) && !(0.0..=1.0).contains(&amplitude) {
+            p.add("/wind/gust/amplitude", format!("must be in [0, 1], got {amplitude}"));
+        }
+        p.non_negative("/wind/gust/frequency", gust.frequency);
+        p.positive("/wind/gust/wavelength", gust.wavelength);
     }
 }

@@ -34,12 +34,14 @@ pub fn kinetic_energy<T: Real>(dynamics: &Dynamics<T>, state: &State<T>) -> f64 
 /// The three energies of a state.
 pub fn energy<T: Real>(dynamics: &Dynamics<T>, state: &State<T>) -> Energy {
     let gravity = dynamics.gravity.map(|g| g.to_dvec3()).unwrap_or_default();
-    let gravitational = -dynamics
-        .masses
-        .iter()
-        .zip(&state.positions)
-        .map(|(&m, x)| m.to_f64() * gravity.dot(x.to_dvec3()))
-        .sum::<f64>();
+    // Adding zero turns the -0 of a scene without gravity into 0.
+    let gravitational = 0.0
+        - dynamics
+            .masses
+            .iter()
+            .zip(&state.positions)
+            .map(|(&m, x)| m.to_f64() * gravity.dot(x.to_dvec3()))
+            .sum::<f64>();
     Energy {
         kinetic: kinetic_energy(dynamics, state),
         gravitational,

@@ -1,10 +1,12 @@
-//! What accelerates the particles: their masses, gravity, drag and springs.
+//! What accelerates the particles: their masses, gravity, drag, springs and wind.
 //!
 //! [`Dynamics`] is everything a force evaluation needs besides the state, so that every
 //! integrator can evaluate `a(x, v, t)` on any trial state (RK4 evaluates four per step).
-//! A force that a scene does not have is `None` and costs nothing.
+//! A force that a scene does not have is `None` and costs nothing. Wind keeps scratch (vertex
+//! normals), so an evaluation takes `&mut self`.
 
 use super::model::{Model, Spring};
+use super::wind::{Wind, WindConfig};
 use super::{Real, Vec3, springs};
 
 /// Particle masses and the forces acting on them.
@@ -20,6 +22,8 @@ pub struct Dynamics<T> {
     pub drag: Option<T>,
     /// Every spring.
     pub springs: Vec<Spring<T>>,
+    /// Wind on the surface triangles, when the scene has any.
+    pub(crate) wind: Option<Wind<T>>,
 }
 
 impl<T: Real> Dynamics<T> {
@@ -50,7 +54,14 @@ impl<T: Real> Dynamics<T> {
             gravity: (gravity != glam::DVec3::ZERO).then(|| Vec3::from_dvec3(gravity)),
             drag: (drag > 0.0).then(|| T::from_f64(drag)),
             springs,
+            wind: None,
         }
+    }
+
+    /// Adds wind acting on the model's triangles.
+    pub fn with_wind(mut self, model: &Model, wind: &WindConfig) -> Self {
+        self.wind = Some(Wind::new(wind, &model.triangles, model.particle_count()));
+        self
     }
 
     /// The names of the force stages present, in the order they are applied.
@@ -62,10 +73,12 @@ impl<T: Real> Dynamics<T> {
         ]
         .into_iter()
         .flatten()
+        .chain(self.wind.iter().flat_map(|w| w.stages().iter().copied()))
     }
 
-    /// Total force on each particle at state `(x, v)`, written into `forces`.
-    pub fn forces(&self, x: &[Vec3<T>], v: &[Vec3<T>], forces: &mut [Vec3<T>]) {
+    /// Total force on each particle at state `(x, v)` and time `t` (seconds), written into
+    /// `forces`.
+    pub fn forces(&mut self, x: &[Vec3<T>], v: &[Vec3<T>], t: f64, forces: &mut [Vec3<T>]) {
         let body = self.gravity.unwrap_or(Vec3::ZERO);
         match self.drag {
             Some(drag) => {
@@ -80,12 +93,15 @@ impl<T: Real> Dynamics<T> {
             }
         }
         springs::add_forces(&self.springs, x, v, forces);
+        if let Some(wind) = &mut self.wind {
+            wind.add_forces(x, v, t, forces);
+        }
     }
 
-    /// Acceleration of each particle at state `(x, v)`, written into `accelerations`; zero for
-    /// pinned particles.
-    pub fn accelerations(&self, x: &[Vec3<T>], v: &[Vec3<T>], accelerations: &mut [Vec3<T>]) {
-        self.forces(x, v, accelerations);
+    /// Acceleration of each particle at state `(x, v)` and time `t`, written into
+    /// `accelerations`; zero for pinned particles.
+    pub fn accelerations(&mut self, x: &[Vec3<T>], v: &[Vec3<T>], t: f64, accelerations: &mut [Vec3<T>]) {
+        self.forces(x, v, t, accelerations);
         for (a, &w) in accelerations.iter_mut().zip(&self.inverse_masses) {
             *a *= w;
         }

@@ -2,33 +2,41 @@
 //!
 //! It does no I/O and knows nothing of serde, HTTP or async; its inputs are plain Rust values.
 //! A [`Model`] (particles, springs, triangles, built by the body builders) and a [`Config`]
-//! compile into a [`Simulation`] in `f32` or `f64`, which holds only the stages the scene needs
-//! and steps without allocating. Two runs of the same inputs give bit-identical results.
+//! (integrator, step, forces including wind, colliders, strain limit, self-collision) compile
+//! into a [`Simulation`] in `f32` or `f64`, which holds only the stages the scene needs and steps
+//! without allocating. Two runs of the same inputs give bit-identical results.
 
 mod bodies;
+mod contacts;
 mod diagnostics;
 mod dynamics;
 mod integrators;
 mod model;
 mod normals;
 mod real;
+mod self_collision;
 mod simulation;
 mod springs;
 mod stability;
 mod state;
+mod strain_limit;
 mod sym3;
 mod vec3;
+mod wind;
 
 #[cfg(test)]
 mod tests;
 
 pub use bodies::{Chain, Cloth, Lattice, Mesh, Orientation, vertex_areas};
+pub use contacts::{Collider, DEFAULT_FRICTION, Shape};
 pub use diagnostics::Energy;
 pub use dynamics::Dynamics;
 pub use integrators::{IntegratorKind, IntegratorSettings, LinearSolveStats};
 pub use model::{Model, Spring, SpringKind, SpringParams};
 pub use real::Real;
+pub use self_collision::SelfCollision;
 pub use simulation::{Config, Simulation};
 pub use stability::{Divergence, DivergenceReason, stable_step};
 pub use state::State;
 pub use vec3::Vec3;
+pub use wind::{Gust, WindConfig, WindModel};

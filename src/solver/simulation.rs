@@ -1,20 +1,28 @@
 //! A compiled scene: the stages it needs, its state, and the step that advances it.
 //!
-//! A step runs, in a fixed order, only the stages the scene has: force accumulation and
-//! integration (the integrator evaluates the forces as often as it needs), then the stability
-//! watch. A step allocates nothing: every buffer is made in [`Simulation::new`].
+//! A step runs, in a fixed order, only the stages the scene has: force accumulation (gravity,
+//! drag, springs, wind) and integration (the integrator evaluates the forces as often as it
+//! needs, at the times it needs), then the strain limit, self-collision, the colliders, and the
+//! stability watch. Self-collision runs before the colliders so that its small pushes can never
+//! leave a particle inside a collider. When a stage after the integrator moved particles, the
+//! integrator is told, so that nothing it cached goes stale. A step allocates nothing: every
+//! buffer is made in [`Simulation::new`].
 
 use glam::DVec3;
 
+use super::contacts::{Collider, Contacts};
 use super::diagnostics::{self, Energy};
 use super::dynamics::Dynamics;
 use super::integrators::{IntegratorKind, IntegratorSettings, LinearSolveStats, Stepper};
 use super::model::Model;
+use super::self_collision::SelfCollision;
 use super::stability::{self, Divergence, DivergenceReason};
+use super::strain_limit::StrainLimit;
+use super::wind::WindConfig;
 use super::{Real, State, Vec3, normals, springs};
 
 /// Everything about a run that is not the bodies themselves.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct Config {
     /// The integration method.
     pub integrator: IntegratorKind,
@@ -26,6 +34,31 @@ pub struct Config {
     pub gravity: DVec3,
     /// Drag rate, in 1/s: each particle feels `-drag · m · v`.
     pub drag: f64,
+    /// Wind, if any.
+    pub wind: Option<WindConfig>,
+    /// Fixed shapes the particles cannot enter, resolved in this order.
+    pub colliders: Vec<Collider>,
+    /// The largest strain any spring may end a step with (a positive fraction), if limited.
+    pub strain_limit: Option<f64>,
+    /// Self-collision thickness, in metres (positive): unjoined particles keep twice it apart.
+    pub self_collision: Option<f64>,
+}
+
+impl Default for Config {
+    /// Symplectic Euler at 1 ms, standard gravity, nothing else.
+    fn default() -> Self {
+        Self {
+            integrator: IntegratorKind::SymplecticEuler,
+            settings: IntegratorSettings::default(),
+            dt: 1e-3,
+            gravity: DVec3::new(0.0, -9.81, 0.0),
+            drag: 0.0,
+            wind: None,
+            colliders: Vec::new(),
+            strain_limit: None,
+            self_collision: None,
+        }
+    }
 }
 
 /// A scene compiled for stepping in precision `T`.
@@ -34,6 +67,9 @@ pub struct Simulation<T: Real> {
     dynamics: Dynamics<T>,
     state: State<T>,
     stepper: Stepper<T>,
+    strain_limit: Option<StrainLimit<T>>,
+    self_collision: Option<SelfCollision<T>>,
+    contacts: Option<Contacts<T>>,
     triangles: Vec<[u32; 3]>,
     integrator: IntegratorKind,
     dt: f64,
@@ -47,19 +83,35 @@ pub struct Simulation<T: Real> {
 impl<T: Real> Simulation<T> {
     /// Compiles a model and a configuration into a simulation at time zero.
     pub fn new(model: &Model, config: &Config) -> Self {
-        let dynamics = Dynamics::new(model, config.gravity, config.drag);
-        let state = State {
+        let mut dynamics = Dynamics::new(model, config.gravity, config.drag);
+        if let Some(wind) = &config.wind {
+            dynamics = dynamics.with_wind(model, wind);
+        }
+        let n = model.particle_count();
+        let mut state = State {
             positions: model.positions.iter().map(|&p| Vec3::from_dvec3(p)).collect(),
             velocities: model.velocities.iter().map(|&v| Vec3::from_dvec3(v)).collect(),
         };
+        let strain_limit = config.strain_limit.map(|limit| StrainLimit::new(limit, n));
+        let self_collision = config.self_collision.map(|thickness| SelfCollision::new(model, thickness));
+        let contacts = Contacts::new(&config.colliders, n);
+        if let Some(contacts) = &contacts {
+            contacts.project_out(&mut state.positions, &dynamics.inverse_masses);
+        }
         let stepper = Stepper::new(config.integrator, &dynamics, config.settings);
         let initial = diagnostics::energy(&dynamics, &state);
         let runaway_limit = stability::runaway_limit(
             initial.kinetic + initial.spring,
-            released_energy(model, config.gravity),
+            released_energy(model, config.gravity) + wind_energy(model, config.wind.as_ref()),
         );
-        let stages = dynamics.stages().collect();
+        let mut stages: Vec<&'static str> = dynamics.stages().collect();
+        stages.extend(strain_limit.as_ref().map(|_| "strain_limit"));
+        stages.extend(self_collision.as_ref().map(|_| "self_collision"));
+        stages.extend(contacts.iter().flat_map(Contacts::stages));
         Self {
+            strain_limit,
+            self_collision,
+            contacts,
             stable_dt: stability::stable_step(model, config.drag),
             dynamics,
             state,
@@ -76,7 +128,26 @@ impl<T: Real> Simulation<T> {
 
     /// Advances one step. On divergence the state is left as it was found, not to be used.
     pub fn step(&mut self) -> Result<(), Divergence> {
-        self.stepper.step(&mut self.state, &self.dynamics, self.h);
+        if let Some(contacts) = &mut self.contacts {
+            contacts.begin_step(&self.state.positions);
+        }
+        let t = self.time();
+        self.stepper.step(&mut self.state, &mut self.dynamics, t, self.h);
+        let inverse_masses = &self.dynamics.inverse_masses;
+        let mut moved = false;
+        if let Some(limit) = &mut self.strain_limit {
+            let contacts = self.contacts.as_ref();
+            moved |= limit.apply(&mut self.state, &self.dynamics.springs, inverse_masses, contacts, self.h);
+        }
+        if let Some(self_collision) = &mut self.self_collision {
+            moved |= self_collision.resolve(&mut self.state, inverse_masses);
+        }
+        if let Some(contacts) = &self.contacts {
+            moved |= contacts.resolve(&mut self.state, inverse_masses);
+        }
+        if moved {
+            self.stepper.state_changed();
+        }
         self.steps_taken += 1;
         self.watch()
     }
@@ -173,6 +244,11 @@ impl<T: Real> Simulation<T> {
     pub fn vertex_normals(&self, out: &mut [Vec3<T>]) {
         normals::vertex_normals(&self.triangles, &self.state.positions, out);
     }
+}
+
+/// The kinetic energy of every particle moving with the wind at its fastest: `½ Σ m |u|²`.
+fn wind_energy(model: &Model, wind: Option<&WindConfig>) -> f64 {
+    wind.map_or(0.0, |w| 0.5 * model.total_mass() * w.peak_speed().powi(2))
 }
 
 /// The most energy gravity can release: every particle falling the scene's extent and one metre

@@ -42,6 +42,7 @@ fn config(integrator: IntegratorKind, dt: f64) -> Config {
         dt,
         gravity: DVec3::ZERO,
         drag: 0.0,
+        ..Config::default()
     }
 }
 
@@ -252,6 +253,7 @@ fn a_settled_chain_carries_the_weight_below_each_link() {
         dt: 0.01,
         gravity: DVec3::new(0.0, -9.81, 0.0),
         drag: 0.0,
+        ..Config::default()
     };
     let mut sim = Simulation::<f64>::new(&hanging_chain(0.5), &config);
     for _ in 0..3000 {

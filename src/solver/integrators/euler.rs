@@ -15,8 +15,8 @@ impl<T: Real> Euler<T> {
     }
 
     /// `x += h v`, then `v += h a`, both from the state at the start of the step.
-    pub fn explicit_step(&mut self, state: &mut State<T>, dynamics: &Dynamics<T>, h: T) {
-        dynamics.accelerations(&state.positions, &state.velocities, &mut self.accelerations);
+    pub fn explicit_step(&mut self, state: &mut State<T>, dynamics: &mut Dynamics<T>, t: f64, h: T) {
+        dynamics.accelerations(&state.positions, &state.velocities, t, &mut self.accelerations);
         for ((x, v), &a) in state.positions.iter_mut().zip(&mut state.velocities).zip(&self.accelerations) {
             *x += *v * h;
             *v += a * h;
@@ -24,8 +24,8 @@ impl<T: Real> Euler<T> {
     }
 
     /// `v += h a`, then `x += h v` with the new velocity.
-    pub fn symplectic_step(&mut self, state: &mut State<T>, dynamics: &Dynamics<T>, h: T) {
-        dynamics.accelerations(&state.positions, &state.velocities, &mut self.accelerations);
+    pub fn symplectic_step(&mut self, state: &mut State<T>, dynamics: &mut Dynamics<T>, t: f64, h: T) {
+        dynamics.accelerations(&state.positions, &state.velocities, t, &mut self.accelerations);
         for ((x, v), &a) in state.positions.iter_mut().zip(&mut state.velocities).zip(&self.accelerations) {
             *v += a * h;
             *x += *v * h;

@@ -9,6 +9,9 @@
 //! out of the solve (their rows and columns are held at zero), so they never move. The previous
 //! step's `Δv` is the starting guess, which makes slowly changing motion converge in a few
 //! iterations.
+//!
+//! Wind enters the right-hand side at the start of the step but not the matrix: it is weak next
+//! to the springs, and its derivative (through the moving normals) is neither symmetric nor cheap.
 
 use super::super::dynamics::Dynamics;
 use super::super::springs::{direction, stiffness_block};
@@ -88,8 +91,8 @@ impl<T: Real> Implicit<T> {
         self.stats
     }
 
-    pub fn step(&mut self, state: &mut State<T>, dynamics: &Dynamics<T>, h: T) {
-        self.assemble(state, dynamics, h);
+    pub fn step(&mut self, state: &mut State<T>, dynamics: &mut Dynamics<T>, t: f64, h: T) {
+        self.assemble(state, dynamics, t, h);
         self.solve(dynamics);
         for ((x, v), &dv) in state.positions.iter_mut().zip(&mut state.velocities).zip(&self.delta_v) {
             *v += dv;
@@ -99,9 +102,9 @@ impl<T: Real> Implicit<T> {
 
     /// Builds the spring blocks, the preconditioner and the right-hand side
     /// `h f - h² Σ K (v_i - v_j)`, filtered.
-    fn assemble(&mut self, state: &State<T>, dynamics: &Dynamics<T>, h: T) {
+    fn assemble(&mut self, state: &State<T>, dynamics: &mut Dynamics<T>, t: f64, h: T) {
         let (x, v) = (&state.positions, &state.velocities);
-        dynamics.forces(x, v, &mut self.forces);
+        dynamics.forces(x, v, t, &mut self.forces);
         let h2 = h * h;
         let drag = dynamics.drag.unwrap_or(T::ZERO);
         for p in 0..x.len() {

@@ -106,14 +106,22 @@ impl<T: Real> Stepper<T> {
         }
     }
 
-    /// Advances `state` by one step of `h` seconds.
-    pub fn step(&mut self, state: &mut State<T>, dynamics: &Dynamics<T>, h: T) {
+    /// Advances `state` by one step of `h` seconds from time `t`.
+    pub fn step(&mut self, state: &mut State<T>, dynamics: &mut Dynamics<T>, t: f64, h: T) {
         match self {
-            Self::ExplicitEuler(e) => e.explicit_step(state, dynamics, h),
-            Self::SymplecticEuler(e) => e.symplectic_step(state, dynamics, h),
-            Self::Verlet(v) => v.step(state, dynamics, h),
-            Self::Rk4(r) => r.step(state, dynamics, h),
-            Self::ImplicitEuler(i) => i.step(state, dynamics, h),
+            Self::ExplicitEuler(e) => e.explicit_step(state, dynamics, t, h),
+            Self::SymplecticEuler(e) => e.symplectic_step(state, dynamics, t, h),
+            Self::Verlet(v) => v.step(state, dynamics, t, h),
+            Self::Rk4(r) => r.step(state, dynamics, t, h),
+            Self::ImplicitEuler(i) => i.step(state, dynamics, t, h),
+        }
+    }
+
+    /// Tells the integrator that something outside it (a constraint, a contact) changed the
+    /// state, so that anything it cached from the last step must be recomputed.
+    pub fn state_changed(&mut self) {
+        if let Self::Verlet(v) = self {
+            v.invalidate();
         }
     }
 

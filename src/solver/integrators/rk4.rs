@@ -22,13 +22,13 @@ impl<T: Real> Rk4<T> {
         Self { trial_x: zeros(), trial_v: zeros(), accelerations: zeros(), sum_x: zeros(), sum_v: zeros() }
     }
 
-    pub fn step(&mut self, state: &mut State<T>, dynamics: &Dynamics<T>, h: T) {
+    pub fn step(&mut self, state: &mut State<T>, dynamics: &mut Dynamics<T>, t: f64, h: T) {
         let half = h * T::from_f64(0.5);
         let two = T::from_f64(2.0);
         let (x0, v0) = (&state.positions, &state.velocities);
 
         // Stage 1 at the start of the step.
-        dynamics.accelerations(x0, v0, &mut self.accelerations);
+        dynamics.accelerations(x0, v0, t, &mut self.accelerations);
         for p in 0..x0.len() {
             let a = self.accelerations[p];
             self.sum_x[p] = v0[p];
@@ -37,8 +37,9 @@ impl<T: Real> Rk4<T> {
             self.trial_v[p] = v0[p] + a * half;
         }
         // Stages 2 and 3 at the midpoint; the trial state moves on to the next stage's.
+        let midpoint = t + half.to_f64();
         for advance in [half, h] {
-            dynamics.accelerations(&self.trial_x, &self.trial_v, &mut self.accelerations);
+            dynamics.accelerations(&self.trial_x, &self.trial_v, midpoint, &mut self.accelerations);
             for p in 0..x0.len() {
                 let (v, a) = (self.trial_v[p], self.accelerations[p]);
                 self.sum_x[p] += v * two;
@@ -48,7 +49,8 @@ impl<T: Real> Rk4<T> {
             }
         }
         // Stage 4 at the end of the step.
-        dynamics.accelerations(&self.trial_x, &self.trial_v, &mut self.accelerations);
+        let end = t + h.to_f64();
+        dynamics.accelerations(&self.trial_x, &self.trial_v, end, &mut self.accelerations);
         let sixth = h / T::from_f64(6.0);
         for p in 0..x0.len() {
             let kx = self.sum_x[p] + self.trial_v[p];

@@ -31,9 +31,14 @@ impl<T: Real> Verlet<T> {
         }
     }
 
-    pub fn step(&mut self, state: &mut State<T>, dynamics: &Dynamics<T>, h: T) {
+    /// Forgets the cached acceleration: the state was changed from outside.
+    pub fn invalidate(&mut self) {
+        self.primed = false;
+    }
+
+    pub fn step(&mut self, state: &mut State<T>, dynamics: &mut Dynamics<T>, t: f64, h: T) {
         if !self.primed {
-            dynamics.accelerations(&state.positions, &state.velocities, &mut self.accelerations);
+            dynamics.accelerations(&state.positions, &state.velocities, t, &mut self.accelerations);
         }
         let half = h * T::from_f64(0.5);
         // The previous drift velocity is v - (h/2) a; damp it and kick by a full step.
@@ -48,7 +53,8 @@ impl<T: Real> Verlet<T> {
             *x += *u * h;
             *v = *u + a * half;
         }
-        dynamics.accelerations(&state.positions, &state.velocities, &mut self.accelerations);
+        let end = t + h.to_f64();
+        dynamics.accelerations(&state.positions, &state.velocities, end, &mut self.accelerations);
         for ((v, &u), &a) in state.velocities.iter_mut().zip(&self.drift).zip(&self.accelerations) {
             *v = u + a * half;
         }

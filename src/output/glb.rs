@@ -1,0 +1,372 @@
+//! glTF 2.0 binary (GLB), as the Khronos glTF 2.0 specification defines it: a 12-byte header,
+//! a JSON chunk and a BIN chunk, little-endian, every chunk padded to 4 bytes.
+//!
+//! Each body is one node and one mesh named after it. Its primitive holds the last recorded
+//! frame: `POSITION` (with the `min`/`max` the specification requires), and for a surface
+//! `NORMAL` and `indices` (triangles, mode 4); a chain, having no triangles, is a line strip
+//! (mode 3). Normals are the recording's when the run recorded them, otherwise computed here
+//! from the triangles; a vertex on no triangle (inside a lattice) is not drawn, but glTF wants
+//! unit normals, so it gets +y. With more than one frame, every frame is a morph target holding
+//! `POSITION` (and `NORMAL`, if recorded) deltas against the last frame, and an animation drives
+//! the mesh `weights` with one keyframe per frame time and `STEP` interpolation, so that at each
+//! frame's time exactly that frame's target shows, fully (the weights are a sparse accessor: one
+//! 1 per keyframe over zeros). three.js's `GLTFLoader` plays it as is.
+//!
+//! Floats are `f32`, as glTF requires: an `f64` run is rounded to the nearest `f32`. A delta is
+//! the exact difference rounded once to `f32`, so a frame shows within half an `f32` step of the
+//! delta's size. The BIN chunk is written straight from the recording; only the last frame of
+//! each body is held in `f32` while the header is built.
+
+use std::io::{self, Write};
+
+use serde_json::{Value, json};
+
+use super::surface::{body_range, body_triangles, body_vectors, vertex_normals};
+use crate::run::{Recording, Samples};
+use crate::scene::BodyInfo;
+
+const MAGIC: &[u8; 4] = b"glTF";
+const VERSION: u32 = 2;
+const CHUNK_JSON: u32 = 0x4E4F_534A;
+const CHUNK_BIN: u32 = 0x004E_4942;
+const ARRAY_BUFFER: u32 = 34962;
+const ELEMENT_ARRAY_BUFFER: u32 = 34963;
+const FLOAT: u32 = 5126;
+const UNSIGNED_INT: u32 = 5125;
+const MODE_LINE_STRIP: u32 = 3;
+const MODE_TRIANGLES: u32 = 4;
+/// The normal given to a vertex on no triangle, which glTF would otherwise refuse as non-unit.
+const UNDRAWN_NORMAL: [f32; 3] = [0.0, 1.0, 0.0];
+
+/// Writes `recording` as a GLB file. It needs positions and at least one frame.
+pub(super) fn write_glb<W: Write>(recording: &Recording, w: &mut W) -> io::Result<()> {
+    let glb = Glb::plan(recording);
+    let mut json_chunk = serde_json::to_vec(&glb.document).map_err(io::Error::other)?;
+    json_chunk.resize(json_chunk.len().next_multiple_of(4), b' ');
+    let bin_length = glb.layout_length;
+    let total = 12 + 8 + json_chunk.len() + 8 + bin_length;
+    let too_large = || {
+        io::Error::new(
+            io::ErrorKind::InvalidInput,
+            format!("{total} bytes is more than a GLB file can hold (4 GiB)"),
+        )
+    };
+    let total = u32::try_from(total).map_err(|_| too_large())?;
+    w.write_all(MAGIC)?;
+    w.write_all(&VERSION.to_le_bytes())?;
+    w.write_all(&total.to_le_bytes())?;
+    w.write_all(&(json_chunk.len() as u32).to_le_bytes())?;
+    w.write_all(&CHUNK_JSON.to_le_bytes())?;
+    w.write_all(&json_chunk)?;
+    w.write_all(&(bin_length as u32).to_le_bytes())?;
+    w.write_all(&CHUNK_BIN.to_le_bytes())?;
+    glb.write_bin(w)
+}
+
+/// A GLB file planned: its JSON document, and what to write into its BIN chunk in what order.
+struct Glb<'a> {
+    recording: &'a Recording,
+    positions: &'a Samples,
+    normals: Option<&'a Samples>,
+    bodies: Vec<BodyPlan<'a>>,
+    times: Vec<f32>,
+    document: Value,
+    layout_length: usize,
+}
+
+impl<'a> Glb<'a> {
+    /// Lays out the BIN chunk (body by body: base positions, normals, indices, then the targets;
+    /// then the animation's times and weights) and describes it in the JSON document. Reads the
+    /// frames once, for the targets' bounds.
+    fn plan(recording: &'a Recording) -> Self {
+        let positions = recording.frames.positions.as_ref().expect("checked by encode");
+        let normals = recording.frames.normals.as_ref();
+        let frames = recording.frames.len();
+        let bodies: Vec<BodyPlan> =
+            recording.bodies.iter().map(|body| BodyPlan::new(recording, body, positions, normals)).collect();
+        let mut layout = Layout::default();
+        let meshes: Vec<Value> =
+            bodies.iter().map(|plan| plan.mesh(&mut layout, recording, positions, normals)).collect();
+        let nodes: Vec<Value> = bodies
+            .iter()
+            .enumerate()
+            .map(|(index, plan)| json!({ "name": plan.body.name, "mesh": index }))
+            .collect();
+        let mut document = json!({
+            "asset": { "version": "2.0", "generator": concat!("drape ", env!("CARGO_PKG_VERSION")) },
+            "scene": 0,
+            "scenes": [{ "nodes": (0..bodies.len()).collect::<Vec<_>>() }],
+            "nodes": nodes,
+            "meshes": meshes,
+        });
+        if bodies.iter().any(|b| !b.triangles.is_empty()) {
+            // Only triangle primitives use it; the validator flags an unused material.
+            document["materials"] = json!([{ "name": "cloth", "doubleSided": true,
+                "pbrMetallicRoughness": { "metallicFactor": 0.0, "roughnessFactor": 0.8 } }]);
+        }
+        let times: Vec<f32> = recording.frames.times.iter().map(|&t| t as f32).collect();
+        if frames > 1 {
+            let time_view = layout.view(4 * frames, None, None);
+            let bounds = (json!([times[0]]), json!([times[frames - 1]]));
+            let input = layout.accessor(time_view, 0, FLOAT, frames, "SCALAR", Some(bounds));
+            // Keyframe k's weights are zero but for target k: a sparse accessor over zeros
+            // holds just the F ones, where a dense one would hold F² floats.
+            let one_indices = layout.view(4 * frames, None, None);
+            let ones = layout.view(4 * frames, None, None);
+            layout.accessors.push(json!({
+                "componentType": FLOAT, "count": frames * frames, "type": "SCALAR",
+                "sparse": { "count": frames,
+                            "indices": { "bufferView": one_indices, "componentType": UNSIGNED_INT },
+                            "values": { "bufferView": ones } },
+            }));
+            let output = layout.accessors.len() - 1;
+            let channels: Vec<Value> = (0..bodies.len())
+                .map(|node| json!({ "sampler": 0, "target": { "node": node, "path": "weights" } }))
+                .collect();
+            document["animations"] = json!([{
+                "name": "motion",
+                "samplers": [{ "input": input, "output": output, "interpolation": "STEP" }],
+                "channels": channels,
+            }]);
+        }
+        let layout_length = layout.length;
+        document["accessors"] = layout.accessors.into();
+        document["bufferViews"] = layout.views.into();
+        document["buffers"] = json!([{ "byteLength": layout_length }]);
+        Self { recording, positions, normals, bodies, times, document, layout_length }
+    }
+
+    /// The BIN chunk, in the order [`Glb::plan`] laid it out.
+    fn write_bin<W: Write>(&self, w: &mut W) -> io::Result<()> {
+        let (recording, frames) = (self.recording, self.recording.frames.len());
+        let mut buffer = Vec::new();
+        for plan in &self.bodies {
+            let body = plan.body;
+            write_f32s(w, plan.base_positions.iter().copied())?;
+            if let Some(base_normals) = &plan.base_normals {
+                write_f32s(w, base_normals.iter().copied())?;
+            }
+            plan.triangles.iter().flatten().try_for_each(|index| w.write_all(&index.to_le_bytes()))?;
+            if frames == 1 {
+                continue;
+            }
+            for k in 0..frames {
+                buffer.clear();
+                for_each_delta(self.positions, recording.particles, k, body, &plan.base_positions, |d| {
+                    d.iter().for_each(|x| buffer.extend_from_slice(&x.to_le_bytes()))
+                });
+                w.write_all(&buffer)?;
+            }
+            if let (Some(normals), Some(base_normals)) = (self.normals, &plan.base_normals) {
+                for k in 0..frames {
+                    let shown =
+                        body_vectors(normals, recording.particles, k, body).into_iter().map(shown_normal);
+                    let deltas = shown
+                        .zip(base_normals.chunks_exact(3))
+                        .map(|(n, base)| [0, 1, 2].map(|a| (f64::from(n[a]) - f64::from(base[a])) as f32));
+                    write_f32s(w, deltas.flatten())?;
+                }
+            }
+        }
+        if frames > 1 {
+            write_f32s(w, self.times.iter().copied())?;
+            (0..frames).try_for_each(|k| w.write_all(&((k * frames + k) as u32).to_le_bytes()))?;
+            write_f32s(w, (0..frames).map(|_| 1.0))?;
+        }
+        Ok(())
+    }
+}
+
+/// What one body contributes: its last frame in `f32`, its normals and its re-based triangles.
+struct BodyPlan<'a> {
+    body: &'a BodyInfo,
+    base_positions: Vec<f32>,
+    /// Present for a body with triangles.
+    base_normals: Option<Vec<f32>>,
+    triangles: Vec<[u32; 3]>,
+}
+
+impl<'a> BodyPlan<'a> {
+    fn new(
+        recording: &Recording,
+        body: &'a BodyInfo,
+        positions: &Samples,
+        normals: Option<&Samples>,
+    ) -> Self {
+        let last = recording.frames.len() - 1;
+        let base_positions = to_f32(positions, body_range(recording.particles, last, body));
+        let triangles = body_triangles(recording, body);
+        let base_normals = (!triangles.is_empty()).then(|| {
+            let vectors = match normals {
+                Some(normals) => body_vectors(normals, recording.particles, last, body),
+                None => vertex_normals(&body_vectors(positions, recording.particles, last, body), &triangles),
+            };
+            vectors.into_iter().flat_map(shown_normal).collect()
+        });
+        Self { body, base_positions, base_normals, triangles }
+    }
+}
+
+impl BodyPlan<'_> {
+    /// The body's mesh: one primitive of its last frame and, with several frames, one morph
+    /// target per frame. Lays out the views it uses.
+    fn mesh(
+        &self,
+        layout: &mut Layout,
+        recording: &Recording,
+        positions: &Samples,
+        normals: Option<&Samples>,
+    ) -> Value {
+        let (body, frames) = (self.body, recording.frames.len());
+        let mut base = Bounds::default();
+        self.base_positions.chunks_exact(3).for_each(|c| base.add([c[0], c[1], c[2]]));
+        let view = layout.view(12 * body.count, Some(ARRAY_BUFFER), None);
+        let mut attributes = json!({ "POSITION": layout.vec3(view, 0, body.count, Some(base.json())) });
+        if self.base_normals.is_some() {
+            let view = layout.view(12 * body.count, Some(ARRAY_BUFFER), None);
+            attributes["NORMAL"] = layout.vec3(view, 0, body.count, None).into();
+        }
+        let mut primitive = json!({ "attributes": attributes, "mode": MODE_LINE_STRIP });
+        if !self.triangles.is_empty() {
+            let view = layout.view(12 * self.triangles.len(), Some(ELEMENT_ARRAY_BUFFER), None);
+            let count = 3 * self.triangles.len();
+            primitive["indices"] = layout.accessor(view, 0, UNSIGNED_INT, count, "SCALAR", None).into();
+            primitive["mode"] = MODE_TRIANGLES.into();
+            primitive["material"] = 0.into();
+        }
+        let mut mesh = json!({ "name": body.name, "primitives": [primitive] });
+        if frames == 1 {
+            return mesh;
+        }
+        let frame_bytes = 12 * body.count;
+        // Targets share a view, so it needs a stride (glTF 2.0 §3.6.2.4).
+        let position_view = layout.view(frames * frame_bytes, Some(ARRAY_BUFFER), Some(12));
+        let mut targets: Vec<Value> = (0..frames)
+            .map(|k| {
+                let mut deltas = Bounds::default();
+                for_each_delta(positions, recording.particles, k, body, &self.base_positions, |d| deltas.add(d));
+                json!({ "POSITION": layout.vec3(position_view, k * frame_bytes, body.count, Some(deltas.json())) })
+            })
+            .collect();
+        if normals.is_some() && self.base_normals.is_some() {
+            let normal_view = layout.view(frames * frame_bytes, Some(ARRAY_BUFFER), Some(12));
+            for (k, target) in targets.iter_mut().enumerate() {
+                target["NORMAL"] = layout.vec3(normal_view, k * frame_bytes, body.count, None).into();
+            }
+        }
+        mesh["primitives"][0]["targets"] = targets.into();
+        mesh["weights"] = vec![0.0; frames].into();
+        mesh
+    }
+}
+
+/// A normal as glTF shows it: in `f32`, and unit even where the surface gave none.
+fn shown_normal(n: [f64; 3]) -> [f32; 3] {
+    if n == [0.0; 3] { UNDRAWN_NORMAL } else { n.map(|x| x as f32) }
+}
+
+/// Calls `f` with each `f32` position delta of `body` in frame `k` against its base positions:
+/// the exact difference, rounded once.
+fn for_each_delta(
+    positions: &Samples,
+    particles: usize,
+    k: usize,
+    body: &BodyInfo,
+    base: &[f32],
+    f: impl FnMut([f32; 3]),
+) {
+    fn each<T: Copy + Into<f64>>(values: &[T], base: &[f32], mut f: impl FnMut([f32; 3])) {
+        for (x, b) in values.chunks_exact(3).zip(base.chunks_exact(3)) {
+            f([0, 1, 2].map(|a| (x[a].into() - f64::from(b[a])) as f32));
+        }
+    }
+    let range = body_range(particles, k, body);
+    match positions {
+        Samples::F32(v) => each(&v[range], base, f),
+        Samples::F64(v) => each(&v[range], base, f),
+    }
+}
+
+fn to_f32(samples: &Samples, range: std::ops::Range<usize>) -> Vec<f32> {
+    match samples {
+        Samples::F32(v) => v[range].to_vec(),
+        Samples::F64(v) => v[range].iter().map(|&x| x as f32).collect(),
+    }
+}
+
+/// Component-wise minimum and maximum, for an accessor's `min` and `max`.
+struct Bounds {
+    min: [f32; 3],
+    max: [f32; 3],
+}
+
+impl Default for Bounds {
+    fn default() -> Self {
+        Self { min: [f32::INFINITY; 3], max: [f32::NEG_INFINITY; 3] }
+    }
+}
+
+impl Bounds {
+    fn add(&mut self, v: [f32; 3]) {
+        self.min = [0, 1, 2].map(|a| self.min[a].min(v[a]));
+        self.max = [0, 1, 2].map(|a| self.max[a].max(v[a]));
+    }
+
+    fn json(&self) -> (Value, Value) {
+        (json!(self.min), json!(self.max))
+    }
+}
+
+fn write_f32s<W: Write>(w: &mut W, values: impl Iterator<Item = f32>) -> io::Result<()> {
+    for x in values {
+        w.write_all(&x.to_le_bytes())?;
+    }
+    Ok(())
+}
+
+/// The buffer views and accessors, laid out in the order the BIN chunk is written.
+#[derive(Default)]
+struct Layout {
+    views: Vec<Value>,
+    accessors: Vec<Value>,
+    length: usize,
+}
+
+impl Layout {
+    /// A view of the next `length` bytes (a multiple of 4, so every view stays aligned).
+    fn view(&mut self, length: usize, target: Option<u32>, stride: Option<usize>) -> usize {
+        debug_assert_eq!(length % 4, 0);
+        let mut view = json!({ "buffer": 0, "byteOffset": self.length, "byteLength": length });
+        if let Some(target) = target {
+            view["target"] = target.into();
+        }
+        if let Some(stride) = stride {
+            view["byteStride"] = stride.into();
+        }
+        self.views.push(view);
+        self.length += length;
+        self.views.len() - 1
+    }
+
+    fn accessor(
+        &mut self,
+        view: usize,
+        offset: usize,
+        component: u32,
+        count: usize,
+        kind: &str,
+        bounds: Option<(Value, Value)>,
+    ) -> usize {
+        let mut accessor = json!({ "bufferView": view, "byteOffset": offset, "componentType": component, "count": count, "type": kind });
+        if let Some((min, max)) = bounds {
+            accessor["min"] = min;
+            accessor["max"] = max;
+        }
+        self.accessors.push(accessor);
+        self.accessors.len() - 1
+    }
+
+    fn vec3(&mut self, view: usize, offset: usize, count: usize, bounds: Option<(Value, Value)>) -> usize {
+        self.accessor(view, offset, FLOAT, count, "VEC3", bounds)
+    }
+}

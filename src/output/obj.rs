@@ -1,0 +1,78 @@
+//! Wavefront OBJ, as Wavefront's "Object Files (.obj)" appendix to the Advanced Visualizer
+//! manual defines it: the last recorded frame as text, one `o` object per body named after it,
+//! with `v` positions, `vn` normals and `f v//vn` faces (1-based, counted over the whole file),
+//! or `l` for a chain, which has no faces.
+//!
+//! Numbers are written in the run's precision, as the shortest decimal that reads back as the
+//! same value: the same numbers as the JSON result's. Normals are the recording's when the run
+//! recorded them, otherwise computed here from the triangles (zero for a vertex on no triangle).
+
+use std::io::{self, Write};
+
+use super::surface::{body_range, body_triangles, body_vectors, vertex_normals};
+use crate::run::{Recording, Samples};
+
+/// Writes the last recorded frame of `recording` as OBJ text. It needs positions and a frame.
+pub(super) fn write_obj<W: Write>(recording: &Recording, w: &mut W) -> io::Result<()> {
+    let positions = recording.frames.positions.as_ref().expect("checked by encode");
+    let last = recording.frames.len() - 1;
+    writeln!(
+        w,
+        "# drape {}: {} particles, t = {} s",
+        env!("CARGO_PKG_VERSION"),
+        recording.particles,
+        recording.frames.times[last]
+    )?;
+    // `f v//vn` indices count over the whole file; chains have vertices but no normals.
+    let mut normals_written = 0;
+    for body in &recording.bodies {
+        writeln!(w, "o {}", body.name.replace(char::is_whitespace, "_"))?;
+        let range = body_range(recording.particles, last, body);
+        write_vectors(w, "v", positions, range.clone())?;
+        let triangles = body_triangles(recording, body);
+        let first = body.offset + 1;
+        if triangles.is_empty() {
+            let indices: Vec<String> = (first..first + body.count).map(|i| i.to_string()).collect();
+            writeln!(w, "l {}", indices.join(" "))?;
+            continue;
+        }
+        match &recording.frames.normals {
+            Some(normals) => write_vectors(w, "vn", normals, range)?,
+            None => {
+                let computed =
+                    vertex_normals(&body_vectors(positions, recording.particles, last, body), &triangles);
+                for n in computed {
+                    match positions {
+                        Samples::F32(_) => writeln!(w, "vn {} {} {}", n[0] as f32, n[1] as f32, n[2] as f32)?,
+                        Samples::F64(_) => writeln!(w, "vn {} {} {}", n[0], n[1], n[2])?,
+                    }
+                }
+            }
+        }
+        for triangle in triangles {
+            let [a, b, c] = triangle.map(|i| i as usize + first);
+            let [na, nb, nc] = triangle.map(|i| i as usize + normals_written + 1);
+            writeln!(w, "f {a}//{na} {b}//{nb} {c}//{nc}")?;
+        }
+        normals_written += body.count;
+    }
+    Ok(())
+}
+
+/// One `tag x y z` line per vector in `range`, in the samples' precision. Rust's `Display` for
+/// floats prints the shortest decimal that reads back as the same value, never an exponent.
+fn write_vectors<W: Write>(
+    w: &mut W,
+    tag: &str,
+    samples: &Samples,
+    range: std::ops::Range<usize>,
+) -> io::Result<()> {
+    match samples {
+        Samples::F32(v) => {
+            v[range].chunks_exact(3).try_for_each(|c| writeln!(w, "{tag} {} {} {}", c[0], c[1], c[2]))
+        }
+        Samples::F64(v) => {
+            v[range].chunks_exact(3).try_for_each(|c| writeln!(w, "{tag} {} {} {}", c[0], c[1], c[2]))
+        }
+    }
+}

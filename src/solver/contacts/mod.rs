@@ -1,0 +1,276 @@
+//! Colliders: fixed shapes that particles cannot enter, with restitution and Coulomb friction.
+//!
+//! Contacts are resolved after the integrator and the constraints have moved the particles, by
+//! projection rather than penalty forces (which would store and release energy). A free particle
+//! found inside a shape (or exactly on its surface: touching) is moved to the surface, the shape's
+//! outward normal `n` there is the contact normal, and if it approaches the surface (`v·n < 0`)
+//! its velocity changes by
+//!
+//! - normal: `Δv_n = -(1 + e) v_n`, so it leaves with `-e v_n` (restitution `e` in [0, 1]);
+//! - tangential: its tangential speed drops by `μ Δv_n` (Coulomb friction `μ`), and to zero
+//!   when that is enough: it sticks.
+//!
+//! Neither part can add kinetic energy. A particle that leaves the surface is not touched.
+//! Particles that start inside are projected out when the simulation is built and again by
+//! each step. Pinned particles are never moved.
+//!
+//! Fast particles do not tunnel. A plane is a half-space: a particle that crossed it during a
+//! step is found behind it, so the end-of-step test is already continuous. Against a sphere the
+//! segment from the start-of-step position to the end is tested: a particle that went through the
+//! ball within the step, or ended past the centre (where the nearest surface point is on the far
+//! side), is put where it first met the surface. A path that only grazes the surface (as a particle
+//! sliding over the ball does) is not a passage. The start-of-step positions live in a buffer made
+//! once, only when a scene has colliders. Boxes and cylinders are tested at the end of the step.
+//!
+//! Each shape has its own file: the test "is this point inside, and where is the nearest surface
+//! point", and the signed distance used to check results.
+
+mod axis_box;
+mod cylinder;
+mod plane;
+mod sphere;
+
+#[cfg(test)]
+mod tests;
+
+use glam::DVec3;
+
+use super::{Real, State, Vec3};
+
+/// The friction coefficient a collider has when the scene gives none.
+pub const DEFAULT_FRICTION: f64 = 0.3;
+
+/// A collider's shape.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Shape {
+    /// The half-space behind a plane through `point` with outward `normal` (any non-zero length).
+    Plane {
+        /// A point on the plane, in metres.
+        point: DVec3,
+        /// The side particles stay on (need not be unit length; not zero).
+        normal: DVec3,
+    },
+    /// A solid ball.
+    Sphere {
+        /// Centre, in metres.
+        center: DVec3,
+        /// Radius, in metres (positive).
+        radius: f64,
+    },
+    /// A solid axis-aligned box.
+    Box {
+        /// Centre, in metres.
+        center: DVec3,
+        /// Half the size along x, y and z, in metres (each positive).
+        half_extents: DVec3,
+    },
+    /// A solid cylinder with its axis along y, like a round table.
+    Cylinder {
+        /// The middle of its axis, in metres; the top is at `center.y + height / 2`.
+        center: DVec3,
+        /// Radius, in metres (positive).
+        radius: f64,
+        /// Height, in metres (positive).
+        height: f64,
+    },
+}
+
+impl Shape {
+    /// The name the public contract uses, which is also the stage's name.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Self::Plane { .. } => "plane",
+            Self::Sphere { .. } => "sphere",
+            Self::Box { .. } => "box",
+            Self::Cylinder { .. } => "cylinder",
+        }
+    }
+
+    /// Signed distance from `p` to the surface, in metres: negative inside.
+    pub fn signed_distance(&self, p: DVec3) -> f64 {
+        ShapeIn::<f64>::new(self).signed_distance(Vec3::from_dvec3(p))
+    }
+}
+
+/// A fixed shape with the response of its surface.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Collider {
+    /// Where it is.
+    pub shape: Shape,
+    /// Coulomb friction coefficient `μ` (at least 0).
+    pub friction: f64,
+    /// Restitution `e`, in [0, 1]: the fraction of approaching normal speed a particle leaves with.
+    pub restitution: f64,
+}
+
+/// A point on a surface and the outward unit normal there.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Surface<T> {
+    pub point: Vec3<T>,
+    pub normal: Vec3<T>,
+}
+
+/// A shape in the simulation's precision.
+#[derive(Clone, Copy, Debug)]
+enum ShapeIn<T> {
+    Plane(plane::Plane<T>),
+    Sphere(sphere::Sphere<T>),
+    Box(axis_box::AxisBox<T>),
+    Cylinder(cylinder::Cylinder<T>),
+}
+
+impl<T: Real> ShapeIn<T> {
+    fn new(shape: &Shape) -> Self {
+        match *shape {
+            Shape::Plane { point, normal } => Self::Plane(plane::Plane::new(point, normal)),
+            Shape::Sphere { center, radius } => Self::Sphere(sphere::Sphere::new(center, radius)),
+            Shape::Box { center, half_extents } => Self::Box(axis_box::AxisBox::new(center, half_extents)),
+            Shape::Cylinder { center, radius, height } => {
+                Self::Cylinder(cylinder::Cylinder::new(center, radius, height))
+            }
+        }
+    }
+
+    fn signed_distance(&self, x: Vec3<T>) -> T {
+        match self {
+            Self::Plane(s) => s.signed_distance(x),
+            Self::Sphere(s) => s.signed_distance(x),
+            Self::Box(s) => s.signed_distance(x),
+            Self::Cylinder(s) => s.signed_distance(x),
+        }
+    }
+
+    /// The nearest surface point and its normal, when `x` is inside or on the surface.
+    fn inside(&self, x: Vec3<T>) -> Option<Surface<T>> {
+        match self {
+            Self::Plane(s) => s.inside(x),
+            Self::Sphere(s) => s.inside(x),
+            Self::Box(s) => s.inside(x),
+            Self::Cylinder(s) => s.inside(x),
+        }
+    }
+
+    /// Where a particle moving from `start` to `end` (outside at both ends) met the surface, for
+    /// the shapes a particle can cross within one step without ending inside.
+    fn contact(&self, start: Vec3<T>, end: Vec3<T>) -> Option<Surface<T>> {
+        match self {
+            Self::Sphere(s) => {
+                let entry = || s.entry(start, end);
+                match s.inside(end) {
+                    // Ended past the centre: the nearest point would be on the far side.
+                    Some(nearest) => match entry() {
+                        Some(first) if first.normal.dot(nearest.normal) < T::ZERO => Some(first),
+                        _ => Some(nearest),
+                    },
+                    None => s.passage(start, end),
+                }
+            }
+            other => other.inside(end),
+        }
+    }
+}
+
+#[derive(Clone, Copy, Debug)]
+struct ColliderIn<T> {
+    shape: ShapeIn<T>,
+    friction: T,
+    restitution: T,
+}
+
+/// The contact stage: every collider, and the start-of-step positions for the swept tests.
+#[derive(Clone, Debug)]
+pub(crate) struct Contacts<T> {
+    colliders: Vec<ColliderIn<T>>,
+    start: Vec<Vec3<T>>,
+}
+
+impl<T: Real> Contacts<T> {
+    /// The stage for these colliders, or `None` when there are none.
+    pub fn new(colliders: &[Collider], particles: usize) -> Option<Self> {
+        if colliders.is_empty() {
+            return None;
+        }
+        let colliders = colliders
+            .iter()
+            .map(|c| ColliderIn {
+                shape: ShapeIn::new(&c.shape),
+                friction: T::from_f64(c.friction),
+                restitution: T::from_f64(c.restitution),
+            })
+            .collect();
+        Some(Self { colliders, start: vec![Vec3::ZERO; particles] })
+    }
+
+    /// Remembers where the particles are before a step moves them.
+    pub fn begin_step(&mut self, positions: &[Vec3<T>]) {
+        self.start.copy_from_slice(positions);
+    }
+
+    /// Moves free particles that are inside a collider out onto its surface, leaving velocities
+    /// alone: for a state that starts inside, and within the strain limit's sweeps.
+    pub fn project_out(&self, positions: &mut [Vec3<T>], inverse_masses: &[T]) {
+        for (x, &w) in positions.iter_mut().zip(inverse_masses) {
+            if w == T::ZERO {
+                continue;
+            }
+            for c in &self.colliders {
+                if let Some(surface) = c.shape.inside(*x) {
+                    *x = surface.point;
+                }
+            }
+        }
+    }
+
+    /// Resolves every contact of the step that moved the particles from the positions given to
+    /// [`begin_step`](Self::begin_step) to `state`. Returns whether any particle was touched.
+    pub fn resolve(&self, state: &mut State<T>, inverse_masses: &[T]) -> bool {
+        let mut touched = false;
+        for (((x, v), &start), &w) in
+            state.positions.iter_mut().zip(&mut state.velocities).zip(&self.start).zip(inverse_masses)
+        {
+            if w == T::ZERO {
+                continue;
+            }
+            for c in &self.colliders {
+                if let Some(surface) = c.shape.contact(start, *x) {
+                    *x = surface.point;
+                    respond(v, surface.normal, c.friction, c.restitution);
+                    touched = true;
+                }
+            }
+        }
+        touched
+    }
+
+    /// The names of the collider stages, each type once, in the order they first appear.
+    pub fn stages(&self) -> impl Iterator<Item = &'static str> + '_ {
+        let name = |c: &ColliderIn<T>| match c.shape {
+            ShapeIn::Plane(_) => "plane",
+            ShapeIn::Sphere(_) => "sphere",
+            ShapeIn::Box(_) => "box",
+            ShapeIn::Cylinder(_) => "cylinder",
+        };
+        self.colliders
+            .iter()
+            .enumerate()
+            .filter(move |&(i, c)| !self.colliders[..i].iter().any(|d| name(d) == name(c)))
+            .map(move |(_, c)| name(c))
+    }
+}
+
+/// The velocity change of a contact with outward unit normal `n`: restitution on the approaching
+/// normal part, Coulomb friction on the tangential part. A separating particle keeps its velocity.
+#[inline]
+pub(crate) fn respond<T: Real>(v: &mut Vec3<T>, n: Vec3<T>, friction: T, restitution: T) {
+    let normal_speed = v.dot(n);
+    if normal_speed >= T::ZERO {
+        return;
+    }
+    let normal_change = -(T::ONE + restitution) * normal_speed;
+    let tangential = *v - n * normal_speed;
+    let tangential_speed = tangential.length();
+    let slowing = friction * normal_change;
+    // Scaling rather than normalising keeps a particle with no tangential speed finite.
+    let keep = if tangential_speed > slowing { T::ONE - slowing / tangential_speed } else { T::ZERO };
+    *v = tangential * keep - n * (restitution * normal_speed);
+}

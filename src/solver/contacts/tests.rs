@@ -1,0 +1,266 @@
+//! Contacts against the known answers: rebound height, sliding distance, no tunnelling, no
+//! energy gained, no penetration, and the edge cases where a direction is undefined.
+
+use glam::DVec3;
+
+use super::*;
+use crate::solver::{Config, IntegratorKind, Lattice, Model, Simulation, SpringParams};
+
+fn plane(friction: f64, restitution: f64) -> Collider {
+    Collider { shape: Shape::Plane { point: DVec3::ZERO, normal: DVec3::Y }, friction, restitution }
+}
+
+/// One free particle of 1 kg at `position` with `velocity`.
+fn particle(position: DVec3, velocity: DVec3) -> Model {
+    let mut m = Model::default();
+    m.add_particles([position], |_| 1.0, velocity);
+    m
+}
+
+fn config(integrator: IntegratorKind, dt: f64, colliders: Vec<Collider>) -> Config {
+    Config { integrator, dt, colliders, ..Config::default() }
+}
+
+#[test]
+fn a_dropped_particle_rebounds_to_restitution_squared_of_its_height() {
+    for integrator in [IntegratorKind::SymplecticEuler, IntegratorKind::Verlet, IntegratorKind::Rk4] {
+        for e in [0.5, 0.8] {
+            let model = particle(DVec3::new(0.0, 1.0, 0.0), DVec3::ZERO);
+            let mut sim = Simulation::<f64>::new(&model, &config(integrator, 1e-4, vec![plane(0.3, e)]));
+            // Fall (0.45 s), bounce, and rise: the peak comes before 1.3 s for e ≤ 0.8.
+            let mut bounced = false;
+            let mut peak: f64 = 0.0;
+            for _ in 0..13_000 {
+                sim.step().unwrap();
+                let (x, v) = (sim.state().positions[0], sim.state().velocities[0]);
+                assert!(x.y >= -1e-12, "{integrator:?} below the plane: {}", x.y);
+                bounced |= v.y > 0.0;
+                if bounced {
+                    peak = peak.max(x.y);
+                }
+            }
+            let expected = e * e;
+            assert!(
+                (peak - expected).abs() < 0.02 * expected,
+                "{integrator:?}, e {e}: peak {peak}, expected {expected}"
+            );
+        }
+    }
+}
+
+#[test]
+fn a_box_sliding_with_friction_stops_after_v_squared_over_two_mu_g() {
+    let (mu, speed, g) = (0.4, 2.0, 9.81);
+    let mut model = Model::default();
+    model.add_lattice(&Lattice {
+        size: [0.1, 0.1, 0.1],
+        resolution: [2, 2, 2],
+        center: DVec3::new(0.0, 0.05, 0.0),
+        mass: 1.0,
+        velocity: DVec3::new(speed, 0.0, 0.0),
+        structural: SpringParams { stiffness: 2e4, damping: 5.0 },
+        shear: SpringParams { stiffness: 2e4, damping: 5.0 },
+        bending: SpringParams { stiffness: 2e4, damping: 5.0 },
+        pins: vec![],
+    });
+    let start = centre_x(&model.positions);
+    let mut sim =
+        Simulation::<f64>::new(&model, &config(IntegratorKind::SymplecticEuler, 1e-4, vec![plane(mu, 0.0)]));
+    for _ in 0..10_000 {
+        sim.step().unwrap();
+    }
+    let positions: Vec<DVec3> = sim.state().positions.iter().map(|p| p.to_dvec3()).collect();
+    let travelled = centre_x(&positions) - start;
+    let expected = speed * speed / (2.0 * mu * g);
+    assert!((travelled - expected).abs() < 0.02 * expected, "travelled {travelled}, expected {expected}");
+    assert!(sim.state().velocities.iter().all(|v| v.length() < 1e-3), "still moving");
+}
+
+fn centre_x(positions: &[DVec3]) -> f64 {
+    positions.iter().map(|p| p.x).sum::<f64>() / positions.len() as f64
+}
+
+#[test]
+fn a_particle_at_100_m_s_stops_at_a_plane_and_at_a_sphere() {
+    let dt = 1.0 / 60.0;
+    // Straight down onto the floor from 1 m: one step takes it 1.67 m.
+    let model = particle(DVec3::new(0.0, 1.0, 0.0), DVec3::new(0.0, -100.0, 0.0));
+    let mut sim =
+        Simulation::<f64>::new(&model, &config(IntegratorKind::SymplecticEuler, dt, vec![plane(0.3, 0.0)]));
+    sim.step().unwrap();
+    assert!(sim.state().positions[0].y.abs() < 1e-12, "{:?}", sim.state().positions[0]);
+    assert!(sim.state().velocities[0].y.abs() < 1e-12);
+
+    // Through a ball of radius 0.3 m in one step: it stops on the near side.
+    let ball = Collider {
+        shape: Shape::Sphere { center: DVec3::ZERO, radius: 0.3 },
+        friction: 0.0,
+        restitution: 0.0,
+    };
+    for start in [DVec3::new(-0.8, 0.0, 0.0), DVec3::new(-0.4, 0.05, 0.0)] {
+        let model = particle(start, DVec3::new(100.0, 0.0, 0.0));
+        let mut sim = Simulation::<f64>::new(
+            &model,
+            &Config { gravity: DVec3::ZERO, ..config(IntegratorKind::SymplecticEuler, dt, vec![ball]) },
+        );
+        sim.step().unwrap();
+        let x = sim.state().positions[0].to_dvec3();
+        assert!(x.x < 0.0, "went through to {x:?}");
+        assert!((x.length() - 0.3).abs() < 1e-12, "{x:?}");
+    }
+}
+
+fn all_shapes() -> Vec<Shape> {
+    vec![
+        Shape::Plane { point: DVec3::new(0.0, 0.1, 0.0), normal: DVec3::new(0.2, 1.0, -0.1) },
+        Shape::Sphere { center: DVec3::new(0.1, 0.0, 0.0), radius: 0.5 },
+        Shape::Box { center: DVec3::new(0.0, 0.0, 0.1), half_extents: DVec3::new(0.4, 0.3, 0.5) },
+        Shape::Cylinder { center: DVec3::ZERO, radius: 0.5, height: 0.4 },
+    ]
+}
+
+/// A deterministic scatter of points and velocities around the origin.
+fn scatter(count: usize) -> (Vec<Vec3<f64>>, Vec<Vec3<f64>>) {
+    let mut seed = 0x2545_f491_4f6c_dd1d_u64;
+    let mut next = move || {
+        seed ^= seed << 13;
+        seed ^= seed >> 7;
+        seed ^= seed << 17;
+        (seed >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+    };
+    (0..count).map(|_| (Vec3::new(next(), next(), next()), Vec3::new(next(), next(), next()) * 3.0)).unzip()
+}
+
+#[test]
+fn contacts_never_add_kinetic_energy_and_leave_no_particle_inside() {
+    for shape in all_shapes() {
+        for (friction, restitution) in [(0.0, 1.0), (0.3, 0.0), (2.0, 0.5), (0.0, 0.0)] {
+            let (positions, velocities) = scatter(2000);
+            let contacts =
+                Contacts::<f64>::new(&[Collider { shape, friction, restitution }], positions.len()).unwrap();
+            let mut contacts = contacts;
+            contacts.begin_step(&positions);
+            let mut state = State { positions: positions.clone(), velocities: velocities.clone() };
+            contacts.resolve(&mut state, &vec![1.0; positions.len()]);
+            for (p, (v0, v1)) in velocities.iter().zip(&state.velocities).enumerate() {
+                let (before, after) = (v0.length_squared(), v1.length_squared());
+                assert!(
+                    after <= before * (1.0 + 1e-12),
+                    "{shape:?} gained energy at {p}: {before} -> {after}"
+                );
+                let depth = shape.signed_distance(state.positions[p].to_dvec3());
+                assert!(depth > -1e-12, "{shape:?}: particle {p} still {depth} inside");
+            }
+        }
+    }
+}
+
+#[test]
+fn friction_stops_slow_sliding_and_only_slows_fast_sliding() {
+    let n = Vec3::new(0.0, 1.0, 0.0);
+    let mut slow = Vec3::new(0.1, -1.0, 0.0);
+    respond(&mut slow, n, 0.5, 0.0);
+    assert_eq!(slow, Vec3::new(0.0, 0.0, 0.0));
+    let mut fast = Vec3::new(3.0, -1.0, 4.0);
+    respond(&mut fast, n, 0.5, 0.5);
+    // Δv_n = 1.5, so the tangential speed 5 drops by 0.75; the normal speed is -e v_n = 0.5.
+    let expected = Vec3::new(3.0, 0.0, 4.0) * (4.25 / 5.0) + Vec3::new(0.0, 0.5, 0.0);
+    assert!((fast - expected).length() < 1e-15, "{fast:?}");
+    // A separating particle is untouched.
+    let mut leaving = Vec3::new(1.0, 0.5, 0.0);
+    respond(&mut leaving, n, 0.5, 0.5);
+    assert_eq!(leaving, Vec3::new(1.0, 0.5, 0.0));
+}
+
+#[test]
+fn particles_with_no_defined_push_direction_get_a_finite_one() {
+    let at_centre = ShapeIn::<f64>::new(&Shape::Sphere { center: DVec3::new(1.0, 2.0, 3.0), radius: 0.5 })
+        .inside(Vec3::new(1.0, 2.0, 3.0))
+        .unwrap();
+    assert_eq!(at_centre.point, Vec3::new(1.0, 2.5, 3.0));
+    // On the axis of a tall cylinder the side is nearest: out along +x.
+    let on_axis = ShapeIn::<f64>::new(&Shape::Cylinder { center: DVec3::ZERO, radius: 0.1, height: 2.0 })
+        .inside(Vec3::new(0.0, 0.2, 0.0))
+        .unwrap();
+    assert_eq!(on_axis.point, Vec3::new(0.1, 0.2, 0.0));
+    assert_eq!(on_axis.normal, Vec3::new(1.0, 0.0, 0.0));
+    // At the centre of a cube, a face.
+    let in_cube = ShapeIn::<f64>::new(&Shape::Box { center: DVec3::ZERO, half_extents: DVec3::splat(0.5) })
+        .inside(Vec3::ZERO)
+        .unwrap();
+    assert!(in_cube.point.is_finite() && (in_cube.normal.length() - 1.0).abs() < 1e-15);
+}
+
+#[test]
+fn signed_distances_match_the_geometry() {
+    let table = Shape::Cylinder { center: DVec3::new(0.0, 0.5, 0.0), radius: 0.5, height: 1.0 };
+    assert!((table.signed_distance(DVec3::new(0.0, 1.2, 0.0)) - 0.2).abs() < 1e-15);
+    assert!((table.signed_distance(DVec3::new(0.8, 0.5, 0.0)) - 0.3).abs() < 1e-15);
+    assert!((table.signed_distance(DVec3::new(0.1, 0.9, 0.0)) + 0.1).abs() < 1e-15);
+    assert!((table.signed_distance(DVec3::new(0.8, 1.4, 0.0)) - 0.5).abs() < 1e-15);
+    let cube = Shape::Box { center: DVec3::ZERO, half_extents: DVec3::splat(1.0) };
+    assert!((cube.signed_distance(DVec3::new(0.5, 0.0, 0.0)) + 0.5).abs() < 1e-15);
+    assert!((cube.signed_distance(DVec3::new(4.0, 5.0, 0.0)) - 5.0).abs() < 1e-15);
+}
+
+#[test]
+fn particles_that_start_inside_are_projected_out_and_pinned_ones_never_move() {
+    let mut model = Model::default();
+    model.add_particles(
+        [DVec3::new(0.0, -0.5, 0.0), DVec3::new(0.3, -0.2, 0.0), DVec3::new(0.0, 2.0, 0.0)],
+        |_| 1.0,
+        DVec3::ZERO,
+    );
+    model.pin(1);
+    let sim =
+        Simulation::<f64>::new(&model, &config(IntegratorKind::SymplecticEuler, 1e-3, vec![plane(0.3, 0.0)]));
+    assert_eq!(sim.state().positions[0], Vec3::new(0.0, 0.0, 0.0));
+    assert_eq!(sim.state().positions[1], Vec3::new(0.3, -0.2, 0.0));
+    let mut sim = sim;
+    for _ in 0..100 {
+        sim.step().unwrap();
+    }
+    assert_eq!(sim.state().positions[1], Vec3::new(0.3, -0.2, 0.0));
+    assert!(sim.state().positions[0].y.abs() < 1e-12);
+}
+
+#[test]
+fn colliders_are_stages_only_when_present_each_type_named_once() {
+    let model = particle(DVec3::new(0.0, 1.0, 0.0), DVec3::ZERO);
+    let none = Simulation::<f64>::new(&model, &config(IntegratorKind::SymplecticEuler, 1e-3, vec![]));
+    assert_eq!(none.stages(), ["gravity"]);
+    let ball = Collider {
+        shape: Shape::Sphere { center: DVec3::ZERO, radius: 0.1 },
+        friction: 0.3,
+        restitution: 0.0,
+    };
+    let colliders = vec![ball, plane(0.3, 0.0), ball];
+    let both = Simulation::<f64>::new(&model, &config(IntegratorKind::SymplecticEuler, 1e-3, colliders));
+    assert_eq!(both.stages(), ["gravity", "sphere", "plane"]);
+    let shapes = all_shapes().into_iter().map(|shape| Collider { shape, friction: 0.3, restitution: 0.0 });
+    let all =
+        Simulation::<f64>::new(&model, &config(IntegratorKind::SymplecticEuler, 1e-3, shapes.collect()));
+    assert_eq!(all.stages(), ["gravity", "plane", "sphere", "box", "cylinder"]);
+}
+
+#[test]
+fn single_precision_contacts_hold_as_well() {
+    let ball = Collider {
+        shape: Shape::Sphere { center: DVec3::ZERO, radius: 0.3 },
+        friction: 0.5,
+        restitution: 0.0,
+    };
+    let mut model = Model::default();
+    model.add_particles((0..20).map(|k| DVec3::new(0.01 * k as f64, 1.0, 0.0)), |_| 0.1, DVec3::ZERO);
+    let mut sim = Simulation::<f32>::new(
+        &model,
+        &config(IntegratorKind::SymplecticEuler, 1e-3, vec![ball, plane(0.5, 0.0)]),
+    );
+    for _ in 0..2000 {
+        sim.step().unwrap();
+        for x in &sim.state().positions {
+            let x = x.to_dvec3();
+            assert!(ball.shape.signed_distance(x) > -1e-6 && x.y > -1e-6, "{x:?}");
+        }
+    }
+}

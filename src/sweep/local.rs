@@ -1,0 +1,74 @@
+//! Running a sweep in this process, on a fixed number of threads, for `drape sweep`.
+
+use std::panic::{AssertUnwindSafe, catch_unwind};
+use std::sync::Mutex;
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+use super::Sweep;
+use super::table::{Row, Table, compile_for_table, final_positions};
+use crate::run::{Control, Recording, execute};
+use crate::scene::Scene;
+
+/// Runs the reference and every variant, `threads` at a time (at least one), and makes the table.
+pub fn run_locally(sweep: &Sweep, threads: usize) -> Table {
+    let scenes: Vec<&Scene> = sweep.reference.iter().chain(sweep.variants.iter().map(|v| &v.scene)).collect();
+    let results: Vec<Mutex<Option<Result<Recording, String>>>> =
+        scenes.iter().map(|_| Mutex::new(None)).collect();
+    let next = AtomicUsize::new(0);
+    std::thread::scope(|scope| {
+        for _ in 0..threads.max(1).min(scenes.len().max(1)) {
+            scope.spawn(|| {
+                loop {
+                    let index = next.fetch_add(1, Ordering::Relaxed);
+                    let Some(scene) = scenes.get(index) else { break };
+                    let outcome = catch_unwind(AssertUnwindSafe(|| {
+                        execute(&compile_for_table(scene), &Control::new())
+                    }))
+                    .map_err(|panic| {
+                        let message = panic
+                            .downcast_ref::<&str>()
+                            .map(|s| s.to_string())
+                            .or_else(|| panic.downcast_ref::<String>().cloned())
+                            .unwrap_or_else(|| "unknown".into());
+                        format!("the run failed: {message}")
+                    });
+                    *results[index].lock().unwrap_or_else(|e| e.into_inner()) = Some(outcome);
+                }
+            });
+        }
+    });
+    let mut outcomes = results.into_iter().map(|m| m.into_inner().unwrap_or_else(|e| e.into_inner()));
+    let reference = sweep.reference.as_ref().map(|scene| {
+        let outcome = outcomes.next().flatten();
+        row_of(Vec::new(), scene, outcome.as_ref(), None)
+    });
+    let reference_positions = match &reference {
+        Some((_, Some(positions))) => Some(positions.clone()),
+        _ => None,
+    };
+    let rows = sweep
+        .variants
+        .iter()
+        .zip(outcomes)
+        .map(|(variant, outcome)| {
+            row_of(variant.values.clone(), &variant.scene, outcome.as_ref(), reference_positions.as_deref()).0
+        })
+        .collect();
+    Table { pointers: sweep.pointers.clone(), rows, reference: reference.map(|(row, _)| row) }
+}
+
+fn row_of(
+    values: Vec<serde_json::Value>,
+    scene: &Scene,
+    outcome: Option<&Result<Recording, String>>,
+    reference: Option<&[f64]>,
+) -> (Row, Option<Vec<f64>>) {
+    match outcome {
+        Some(Ok(recording)) => (
+            Row::from_recording(values, recording, reference),
+            final_positions(recording).filter(|_| recording.has_final),
+        ),
+        Some(Err(message)) => (Row::failed(values, scene.integrator.kind().name(), message.clone()), None),
+        None => (Row::failed(values, scene.integrator.kind().name(), "the run did not report".into()), None),
+    }
+}

@@ -1,0 +1,87 @@
+//! The scripts in `examples/curl/` work against `drape serve` as the README shows.
+
+#![cfg(unix)]
+
+use std::io::{BufRead, BufReader};
+use std::path::Path;
+use std::process::{Command, Output, Stdio};
+
+use serde_json::Value;
+
+const SCENE: &str = r#"{"duration": 0.5, "dt": 0.01, "bodies": [{"type": "chain", "count": 4}],
+                       "output": {"frames": "final"}}"#;
+
+fn script(base: &str, name: &str, args: &[&str]) -> Output {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/curl").join(name);
+    let output = Command::new(&path).args(args).env("DRAPE", base).output().unwrap();
+    assert!(output.status.success(), "{name} {args:?}: {}", String::from_utf8_lossy(&output.stderr));
+    output
+}
+
+fn json(output: &Output) -> Value {
+    serde_json::from_slice(&output.stdout)
+        .unwrap_or_else(|e| panic!("{e}: {}", String::from_utf8_lossy(&output.stdout)))
+}
+
+#[test]
+fn every_curl_script_works_against_drape_serve() {
+    if Command::new("curl").arg("--version").stdout(Stdio::null()).status().is_err() {
+        panic!("curl is needed to check examples/curl/");
+    }
+    let mut server = Command::new(env!("CARGO_BIN_EXE_drape"))
+        .args(["serve", "--store", "memory", "--addr", "127.0.0.1:0", "--workers", "1"])
+        .env("RUST_LOG", "warn")
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let mut line = String::new();
+    BufReader::new(server.stdout.take().unwrap()).read_line(&mut line).unwrap();
+    let base = line.trim().strip_prefix("drape listening on ").unwrap().to_string();
+    let dir = std::env::temp_dir().join(format!("drape-curl-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let scene = dir.join("scene.json");
+    std::fs::write(&scene, SCENE).unwrap();
+    let scene = scene.to_str().unwrap();
+
+    assert_eq!(json(&script(&base, "healthz.sh", &[]))["status"], "ok");
+    let result = json(&script(&base, "simulate.sh", &[scene]));
+    assert_eq!(result["final"]["positions"].as_array().unwrap().len(), 12);
+
+    let job = json(&script(&base, "submit_job.sh", &[scene, "curl-test"]));
+    let id = job["id"].as_str().unwrap();
+    let again = json(&script(&base, "submit_job.sh", &[scene, "curl-test"]));
+    assert_eq!(again["id"], id, "same key, same job");
+    let events = String::from_utf8(script(&base, "follow_events.sh", &[id]).stdout).unwrap();
+    assert!(events.contains("event: end\ndata: "), "{events}");
+    assert_eq!(json(&script(&base, "get_job.sh", &[id]))["status"], "succeeded");
+    let saved = dir.join("result.json");
+    script(&base, "get_result.sh", &[id, saved.to_str().unwrap()]);
+    let saved: Value = serde_json::from_slice(&std::fs::read(&saved).unwrap()).unwrap();
+    assert_eq!(saved["stats"]["steps"], 50);
+    assert_eq!(json(&script(&base, "list_jobs.sh", &["0", "1"]))["jobs"][0]["id"], id);
+    assert!(
+        String::from_utf8(script(&base, "metrics.sh", &[]).stdout)
+            .unwrap()
+            .contains("drape_jobs{status=\"succeeded\"} 2")
+    );
+    assert_eq!(json(&script(&base, "openapi.sh", &[]))["openapi"], "3.1.0");
+
+    let long = dir.join("long.json");
+    std::fs::write(
+        &long,
+        SCENE.replace("0.5", "1000").replace("0.01", "0.001").replace("\"count\": 4", "\"count\": 1000"),
+    )
+    .unwrap();
+    let running = json(&script(&base, "submit_job.sh", &[long.to_str().unwrap()]));
+    let cancelled = json(&script(&base, "cancel_job.sh", &[running["id"].as_str().unwrap()]));
+    assert_eq!(cancelled["id"], running["id"]);
+
+    let ci = script(&base, "ci_job.sh", &[scene, dir.join("ci.json").to_str().unwrap()]);
+    assert!(String::from_utf8(ci.stdout).unwrap().contains("status succeeded"));
+    assert!(std::fs::read(dir.join("ci.json")).unwrap().starts_with(b"{\"mesh\""));
+
+    Command::new("kill").args(["-TERM", &server.id().to_string()]).status().unwrap();
+    assert!(server.wait().unwrap().success());
+    std::fs::remove_dir_all(&dir).unwrap();
+}

@@ -1,0 +1,301 @@
+//! Every scene in `examples/` runs as `drape run` would run it, and shows the physics it is
+//! there to show: oscillation periods against theory, no particle inside a collider after any
+//! step, a symmetric tablecloth, a flag blown downwind, a jelly cube at rest on the ground,
+//! self-collision distances and the strain limit.
+
+use std::path::Path;
+
+use drape::run::{self, Control, Status};
+use drape::scene::{Compiled, Scene};
+use drape::solver::{Simulation, Vec3};
+use glam::DVec3;
+
+fn scene(name: &str) -> Scene {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("examples").join(name);
+    let text = std::fs::read(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    Scene::from_json(&text).unwrap_or_else(|e| panic!("{name}: {e}"))
+}
+
+/// Steps a compiled scene to its end, checking after every step that no free particle is inside
+/// a collider by more than 1e-6 m; returns the simulation at the end.
+fn run_checked(compiled: &Compiled, mut after_step: impl FnMut(&Simulation<f64>)) -> Simulation<f64> {
+    let mut sim = Simulation::<f64>::new(&compiled.model, &compiled.config);
+    for _ in 0..compiled.steps {
+        sim.step().unwrap_or_else(|d| panic!("diverged: {d:?}"));
+        assert_outside_colliders(compiled, &sim);
+        after_step(&sim);
+    }
+    sim
+}
+
+fn assert_outside_colliders(compiled: &Compiled, sim: &Simulation<f64>) {
+    for collider in &compiled.config.colliders {
+        for (p, x) in sim.state().positions.iter().enumerate() {
+            if compiled.model.pinned[p] {
+                continue;
+            }
+            let depth = collider.shape.signed_distance(x.to_dvec3());
+            assert!(
+                depth >= -1e-6,
+                "step {}: particle {p} is {:.3e} m inside the {}",
+                sim.steps_taken(),
+                -depth,
+                collider.shape.name()
+            );
+        }
+    }
+}
+
+fn positions(sim: &Simulation<f64>) -> Vec<DVec3> {
+    sim.state().positions.iter().map(|p| p.to_dvec3()).collect()
+}
+
+fn mean(points: &[DVec3]) -> DVec3 {
+    points.iter().sum::<DVec3>() / points.len() as f64
+}
+
+fn max_speed(sim: &Simulation<f64>) -> f64 {
+    sim.state().velocities.iter().map(|v: &Vec3<f64>| v.to_dvec3().length()).fold(0.0, f64::max)
+}
+
+/// The period of a sampled signal from its upward crossings of the middle of its range.
+fn period(samples: &[f64], dt: f64) -> f64 {
+    let (lo, hi) = samples.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &s| (l.min(s), h.max(s)));
+    let middle = 0.5 * (lo + hi);
+    let crossings: Vec<f64> = samples
+        .windows(2)
+        .enumerate()
+        .filter(|(_, w)| w[0] < middle && w[1] >= middle)
+        .map(|(k, w)| (k as f64 + (middle - w[0]) / (w[1] - w[0])) * dt)
+        .collect();
+    assert!(crossings.len() >= 3, "too few oscillations: {}", crossings.len());
+    (crossings[crossings.len() - 1] - crossings[0]) / (crossings.len() - 1) as f64
+}
+
+#[test]
+fn every_example_runs_as_drape_run_runs_it() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("examples");
+    let mut names: Vec<String> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().into_string().unwrap())
+        .filter(|n| n.ends_with(".json"))
+        .collect();
+    names.sort();
+    for name in [
+        "single_spring.json",
+        "chain.json",
+        "hanging_cloth.json",
+        "drape_sphere.json",
+        "drape_sphere_explicit.json",
+        "tablecloth.json",
+        "flag.json",
+        "jelly_cube.json",
+        "self_collision.json",
+        "strain_limited.json",
+    ] {
+        assert!(names.iter().any(|n| n == name), "examples/{name} is missing");
+    }
+    for name in &names {
+        let compiled = scene(name).compile();
+        let recording = run::execute(&compiled, &Control::new());
+        assert_eq!(recording.stats.status, Status::Succeeded, "{name}: {:?}", recording.stats.diverged);
+        assert!(recording.stats.energy.is_some_and(|e| e.total().is_finite()), "{name}");
+        let stages = &recording.stats.stages;
+        for collider in &compiled.config.colliders {
+            assert!(stages.contains(&collider.shape.name()), "{name}: {stages:?}");
+        }
+        let expected: &[&str] = match name.as_str() {
+            "single_spring.json" | "chain.json" => &["gravity", "springs"],
+            "hanging_cloth.json" => &["gravity", "drag", "springs"],
+            "drape_sphere.json" | "drape_sphere_explicit.json" => {
+                &["gravity", "drag", "springs", "sphere", "plane"]
+            }
+            "tablecloth.json" => &["gravity", "drag", "springs", "cylinder", "plane"],
+            // Aerodynamic wind needs no vertex normals; the output's `normals` field does.
+            "flag.json" => &["gravity", "drag", "springs", "wind", "normals"],
+            "jelly_cube.json" => &["gravity", "drag", "springs", "plane"],
+            "self_collision.json" => &["gravity", "drag", "springs", "self_collision", "plane"],
+            "strain_limited.json" => &["gravity", "drag", "springs", "strain_limit", "sphere"],
+            _ => continue,
+        };
+        assert_eq!(stages, expected, "{name}");
+    }
+}
+
+#[test]
+fn single_spring_oscillates_with_period_two_pi_root_m_over_k() {
+    let compiled = scene("single_spring.json").compile();
+    let mut heights = Vec::new();
+    run_checked(&compiled, |sim| heights.push(sim.state().positions[1].y));
+    // The free particle carries half the 0.2 kg; k = 40 N/m.
+    let expected = std::f64::consts::TAU * (0.1f64 / 40.0).sqrt();
+    let measured = period(&heights, compiled.config.dt);
+    assert!((measured - expected).abs() < 1e-3 * expected, "period {measured}, expected {expected}");
+}
+
+#[test]
+fn chain_fundamental_mode_has_the_period_of_a_fixed_free_chain() {
+    // Five free masses m = 0.1 kg below a pin, six springs of k = 50 N/m... five springs: the
+    // modes of a fixed-free chain of N masses are sin(i θ_j), θ_j = (2j - 1) π / (2N + 1), with
+    // ω_j = 2 √(k/m) sin(θ_j / 2). Gravity along the chain only shifts the equilibrium.
+    let compiled = scene("chain.json").compile();
+    let (n, k, m) = (5usize, 50.0f64, 0.1f64);
+    let theta = std::f64::consts::PI / (2 * n + 1) as f64;
+    let shape: Vec<f64> = (1..=n).map(|i| (i as f64 * theta).sin()).collect();
+    let mut amplitude = Vec::new();
+    run_checked(&compiled, |sim| {
+        let y = &sim.state().positions;
+        amplitude.push((1..=n).map(|i| shape[i - 1] * y[i].y).sum());
+    });
+    let omega = 2.0 * (k / m).sqrt() * (theta / 2.0).sin();
+    let expected = std::f64::consts::TAU / omega;
+    let measured = period(&amplitude, compiled.config.dt);
+    assert!((measured - expected).abs() < 1e-3 * expected, "period {measured}, expected {expected}");
+}
+
+/// The particle of `(i, j)` mirrored across the cloth's centre line along `i`.
+fn mirror_error(x: &[DVec3], nx: usize, ny: usize, centre: DVec3) -> f64 {
+    let mut worst: f64 = 0.0;
+    for j in 0..ny {
+        for i in 0..nx {
+            let a = x[j * nx + i] - centre;
+            let b = x[j * nx + (nx - 1 - i)] - centre;
+            worst = worst.max((a - DVec3::new(-b.x, b.y, b.z)).length());
+        }
+    }
+    worst
+}
+
+#[test]
+fn hanging_cloth_holds_its_two_corners_and_hangs_symmetrically_below_them() {
+    let compiled = scene("hanging_cloth.json").compile();
+    let start = compiled.model.positions.clone();
+    let sim = run_checked(&compiled, |_| {});
+    let x = positions(&sim);
+    let (nx, ny) = (20, 20);
+    for corner in [0, nx - 1] {
+        assert_eq!(x[corner], start[corner], "pinned corner {corner} moved");
+    }
+    assert!(x.iter().all(|p| p.y <= start[0].y + 1e-9));
+    assert!(mean(&x).y < start[0].y - 0.3, "the cloth does not hang: {:?}", mean(&x));
+    let asymmetry = mirror_error(&x, nx, ny, DVec3::ZERO);
+    assert!(asymmetry < 1e-3, "asymmetric by {asymmetry} m");
+}
+
+#[test]
+fn cloth_drapes_over_the_sphere_without_entering_it() {
+    let compiled = scene("drape_sphere.json").compile();
+    let sim = run_checked(&compiled, |_| {});
+    let x = positions(&sim);
+    // Particle (10, 10) is next to the middle: it rests on top of the ball (top at y = 0.8).
+    let top = x.iter().map(|p| p.y).fold(f64::NEG_INFINITY, f64::max);
+    assert!((top - 0.8).abs() < 0.02, "highest point {top}");
+    let corner = x[0];
+    assert!(corner.y < 0.5, "corner still at {corner:?}");
+}
+
+#[test]
+fn explicit_euler_with_small_steps_agrees_with_implicit_euler_at_large_steps() {
+    let explicit = scene("drape_sphere_explicit.json").compile();
+    let implicit = scene("drape_sphere.json").compile();
+    assert!(explicit.steps >= 40 * implicit.steps);
+    let a = positions(&run_checked(&explicit, |_| {}));
+    let b = positions(&run_checked(&implicit, |_| {}));
+    let (ca, cb) = (mean(&a), mean(&b));
+    assert!((ca - cb).length() < 0.02, "centres {ca:?} and {cb:?}");
+    let mean_gap = a.iter().zip(&b).map(|(p, q)| p.distance(*q)).sum::<f64>() / a.len() as f64;
+    assert!(mean_gap < 0.03, "the drapes differ by {mean_gap} m on average");
+}
+
+#[test]
+fn tablecloth_comes_to_rest_symmetric_about_the_table_axis() {
+    let compiled = scene("tablecloth.json").compile();
+    let sim = run_checked(&compiled, |_| {});
+    let x = positions(&sim);
+    let n = 21;
+    let centre = mean(&x);
+    assert!(centre.x.abs() < 1e-3 && centre.z.abs() < 1e-3, "centre {centre:?}");
+    assert!(mirror_error(&x, n, n, DVec3::ZERO) < 1e-3, "{}", mirror_error(&x, n, n, DVec3::ZERO));
+    // Mirrored across x = 0 by rows too: (i, j) against (i, n - 1 - j).
+    let swapped: Vec<DVec3> = (0..n * n).map(|p| x[(n - 1 - p / n) * n + p % n]).collect();
+    let rows =
+        x.iter().zip(&swapped).map(|(a, b)| (*a - DVec3::new(b.x, b.y, -b.z)).length()).fold(0.0, f64::max);
+    assert!(rows < 1e-3, "{rows}");
+    // On the table: the middle particle rests on the top at 0.7 m; the edges hang down.
+    assert!((x[n * n / 2].y - 0.7).abs() < 1e-3, "{:?}", x[n * n / 2]);
+    assert!(x[0].y < 0.5, "corner at {:?}", x[0]);
+    assert!(max_speed(&sim) < 0.05, "still moving at {} m/s", max_speed(&sim));
+}
+
+#[test]
+fn flag_moves_downwind_and_hangs_straight_down_without_wind() {
+    let windy = scene("flag.json");
+    let compiled = windy.compile();
+    let start = mean(&compiled.model.positions);
+    let blown = mean(&positions(&run_checked(&compiled, |_| {})));
+    assert!(blown.z > start.z + 0.1, "mean moved only to {blown:?} from {start:?}");
+
+    let mut calm = windy.clone();
+    calm.wind = None;
+    let calm = calm.compile();
+    let sim = run_checked(&calm, |_| {});
+    assert!(!sim.stages().contains(&"wind"));
+    for (p, (x, x0)) in positions(&sim).iter().zip(&calm.model.positions).enumerate() {
+        assert!(x.z.abs() < 1e-9, "particle {p} left the plane: {x:?}");
+        assert!((x.x - x0.x).abs() < 5e-3, "particle {p} is not below where it started: {x:?}, {x0:?}");
+    }
+}
+
+#[test]
+fn jelly_cube_lands_and_rests_on_the_ground_keeping_its_shape() {
+    let compiled = scene("jelly_cube.json").compile();
+    let sim = run_checked(&compiled, |_| {});
+    let x = positions(&sim);
+    let (low, high) = x.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), p| (l.min(p.y), h.max(p.y)));
+    assert!(low.abs() < 1e-3, "lowest particle at {low}");
+    assert!((high - low - 0.2).abs() < 0.02, "height {}", high - low);
+    assert!(max_speed(&sim) < 0.05, "still moving at {} m/s", max_speed(&sim));
+}
+
+#[test]
+fn cloth_folding_onto_itself_keeps_unjoined_particles_apart() {
+    let scene = scene("self_collision.json");
+    let thickness = scene.self_collision.unwrap().thickness;
+    let compiled = scene.compile();
+    let sim = run_checked(&compiled, |_| {});
+    assert!(sim.stages().contains(&"self_collision"));
+    let x = positions(&sim);
+    let mut joined = std::collections::HashSet::new();
+    for s in &compiled.model.springs {
+        joined.insert((s.i.min(s.j), s.i.max(s.j)));
+    }
+    let mut closest = f64::INFINITY;
+    for p in 0..x.len() {
+        for q in p + 1..x.len() {
+            if !joined.contains(&(p as u32, q as u32)) {
+                closest = closest.min(x[p].distance(x[q]));
+            }
+        }
+    }
+    assert!(closest > thickness, "two unjoined particles are {closest} m apart");
+    // It did fold: some particles are stacked above others.
+    let top = x.iter().map(|p| p.y).fold(0.0, f64::max);
+    assert!(top > 2.0 * thickness && top < 0.3, "top at {top}");
+}
+
+#[test]
+fn strain_limit_holds_the_cloth_over_the_sphere_to_ten_percent() {
+    let limited = scene("strain_limited.json");
+    let compiled = limited.compile();
+    let mut worst: f64 = 0.0;
+    let sim = run_checked(&compiled, |sim| worst = worst.max(sim.max_strain()));
+    assert!(sim.stages().contains(&"strain_limit"));
+    // The pass keeps particles out of the sphere while it shortens springs, so both hold.
+    assert!(worst <= 0.1 * (1.0 + 1e-6), "strain reached {worst}");
+
+    let mut free = limited.clone();
+    free.strain_limit = None;
+    let mut worst_free: f64 = 0.0;
+    run_checked(&free.compile(), |sim| worst_free = worst_free.max(sim.max_strain()));
+    assert!(worst_free > 0.15, "without the limit the soft cloth should stretch more: {worst_free}");
+}

@@ -1,0 +1,9 @@
+//! Each result format read back by a reader that is not ours, and checked against the JSON
+//! result of the same run, number for number.
+
+mod common;
+mod glb;
+mod npy;
+mod obj;
+mod pc2;
+mod selection;
