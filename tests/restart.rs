@@ -57,3 +57,25 @@ async fn a_killed_server_restarted_on_its_sqlite_file_finishes_every_job() {
     expected.sort();
     assert_eq!(starts, expected, "the restarted server ran the unfinished jobs, each once");
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_stopped_server_leaves_its_jobs_queued_for_the_next_start() {
+    let dir = tempfile::tempdir().unwrap();
+    let store = "sqlite://jobs.db";
+    let client = reqwest::Client::new();
+    let first = Server::start(dir.path(), store, &["--workers", "1", "--shutdown-grace", "0"]);
+    let running = submit(&client, &first.base, MEDIUM).await;
+    let waiting = submit(&client, &first.base, TINY).await;
+    wait_for(&client, &first.base, &running, under_way).await;
+    first.terminate();
+
+    let second = Server::start(dir.path(), store, &["--workers", "1"]);
+    for (id, attempts) in [(&running, 2), (&waiting, 1)] {
+        let job = wait_for(&client, &second.base, id, ended).await;
+        assert_eq!(
+            (job["status"].as_str(), job["attempts"].as_u64()),
+            (Some("succeeded"), Some(attempts)),
+            "{job}"
+        );
+    }
+}

@@ -57,6 +57,13 @@ impl Server {
         self.child.wait().unwrap();
     }
 
+    /// Stops the process with SIGTERM and checks that it exits 0.
+    pub fn terminate(mut self) {
+        let pid = self.child.id().to_string();
+        assert!(Command::new("kill").args(["-TERM", &pid]).status().unwrap().success());
+        assert!(self.child.wait().unwrap().success(), "drape serve exits 0 on SIGTERM");
+    }
+
     /// How many times each job was started here, from the `job started` lines of the log.
     pub fn starts(&self) -> Vec<String> {
         self.log
