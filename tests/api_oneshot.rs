@@ -361,3 +361,48 @@ async fn results_are_served_in_the_scenes_format() {
     assert_eq!(points, 3);
     assert_eq!(result.body.len(), 32 + samples * points * 12);
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_result_format_is_chosen_by_query_or_accept_and_stored_once() {
+    let (_, app) = test_app(jobs_config(), ApiConfig::default());
+    let with_accept = |path: &str, accept: &str| {
+        Request::post(path)
+            .header("content-type", "application/json")
+            .header("accept", accept)
+            .body(Body::from(TINY.replace("final", "all")))
+            .unwrap()
+    };
+    let pc2 = send(&app, with_accept("/simulate", "application/x-pc2")).await;
+    assert_eq!(pc2.status, 200, "{}", pc2.text());
+    assert_eq!(pc2.header("content-type"), Some("application/x-pc2"));
+    assert_eq!(&pc2.body[..12], b"POINTCACHE2\0");
+    let glb = post_json(&app, "/simulate?format=glb", &TINY.replace("final", "all")).await;
+    assert_eq!(glb.header("content-type"), Some("model/gltf-binary"));
+    assert_eq!(&glb.body[..4], b"glTF");
+    let browser = send(&app, with_accept("/simulate", "text/html, */*;q=0.8")).await;
+    assert_eq!(browser.header("content-type"), Some("application/json"), "*/* leaves the scene's format");
+
+    let job = post_json(&app, "/jobs?format=pc2", &TINY.replace("final", "all")).await.json();
+    let id = job["id"].as_str().unwrap().to_string();
+    poll_until(&app, &id, is_final).await;
+    let path = format!("/jobs/{id}/result");
+    assert_eq!(get(&app, &path).await.header("content-type"), Some("application/x-pc2"));
+    assert_eq!(get(&app, &format!("{path}?format=pc2")).await.status, 200);
+    let refused =
+        send(&app, Request::get(&path).header("accept", "application/json").body(Body::empty()).unwrap())
+            .await;
+    assert_eq!(refused.status, 406);
+    let detail = refused.problem()["detail"].as_str().unwrap().to_string();
+    assert!(detail.contains("stored as application/x-pc2") && detail.contains("?format=json"), "{detail}");
+
+    // The format is part of the idempotent request.
+    let keyed = |path: &str| {
+        Request::post(path)
+            .header("content-type", "application/json")
+            .header("idempotency-key", "fmt")
+            .body(Body::from(TINY))
+            .unwrap()
+    };
+    assert_eq!(send(&app, keyed("/jobs?format=json")).await.status, 202);
+    assert_eq!(send(&app, keyed("/jobs?format=npz")).await.status, 422);
+}

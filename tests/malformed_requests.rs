@@ -137,6 +137,19 @@ fn cases() -> Vec<Case> {
         .without_pointer(),
         scene("body over the size limit", &format!(r#"{{"pad": "{}"}}"#, "x".repeat(70_000)), 413, "")
             .without_pointer(),
+        // Result formats.
+        Case { path: "/simulate?format=gif", ..scene("unknown format in the query", TINY, 400, "/format") },
+        Case {
+            path: "/jobs?format=pc2",
+            ..scene(
+                "format that cannot carry a field",
+                &top(r#", "output": {"fields": ["energy"]}"#),
+                422,
+                "/output/fields/0",
+            )
+        },
+        Case { method: "POST-TEXT-ONLY", path: "/simulate", ..scene("nothing acceptable", TINY, 406, "") }
+            .without_pointer(),
         // Headers and query parameters.
         Case {
             name: "idempotency key too long",
@@ -168,13 +181,16 @@ impl Case {
     }
 
     fn request(&self) -> Request<Body> {
-        let method = if self.method == "POST-KEYED" { "POST" } else { self.method };
+        let method = if self.method.starts_with("POST-") { "POST" } else { self.method };
         let mut builder = Request::builder().method(method).uri(self.path);
         if let Some(content_type) = self.content_type {
             builder = builder.header("content-type", content_type);
         }
         if self.method == "POST-KEYED" {
             builder = builder.header("idempotency-key", "k".repeat(256));
+        }
+        if self.method == "POST-TEXT-ONLY" {
+            builder = builder.header("accept", "text/html");
         }
         builder.body(Body::from(self.body.clone())).unwrap()
     }

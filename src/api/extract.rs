@@ -11,6 +11,7 @@ use serde_json::Value;
 
 use super::problem::AppError;
 use crate::jobs::{JobId, fingerprint};
+use crate::output::Format;
 use crate::scene::{FieldError, Scene};
 
 /// A scene from a JSON body, validated, with the fingerprint of the document.
@@ -21,6 +22,18 @@ pub struct SceneBody {
     pub fingerprint: u64,
     /// The document, as the job store keeps it.
     pub document: Value,
+}
+
+impl SceneBody {
+    /// The scene with its result format set to `choice`, if the client chose one, checked
+    /// against the fields the scene records. The choice is part of the fingerprint.
+    pub fn with_format(mut self, choice: Option<Format>) -> Result<Self, AppError> {
+        let Some(format) = choice else { return Ok(self) };
+        crate::output::check(format, &self.scene.output).map_err(AppError::InvalidScene)?;
+        self.scene.output.format = format;
+        self.fingerprint = fingerprint(&serde_json::json!([self.fingerprint, format.name()]));
+        Ok(self)
+    }
 }
 
 impl<S: Send + Sync> FromRequest<S> for SceneBody {
@@ -155,6 +168,38 @@ impl<S: Send + Sync> FromRequestParts<S> for PageQuery {
             Ok(Self { offset, limit })
         } else {
             Err(AppError::BadRequest { detail: "invalid query parameters; see `errors`".into(), errors })
+        }
+    }
+}
+
+/// The result format a client asks for: `?format=` (a name), else, when `ACCEPT` is true, the
+/// `Accept` header (media types). `None` leaves the choice to the scene's `output.format`.
+pub struct FormatChoice<const ACCEPT: bool>(pub Option<Format>);
+
+impl<S: Send + Sync, const ACCEPT: bool> FromRequestParts<S> for FormatChoice<ACCEPT> {
+    type Rejection = AppError;
+
+    async fn from_request_parts(parts: &mut Parts, state: &S) -> Result<Self, AppError> {
+        let axum::extract::Query(params) =
+            axum::extract::Query::<HashMap<String, String>>::from_request_parts(parts, state).await.map_err(
+                |e| AppError::BadRequest {
+                    detail: format!("the query string is malformed: {e}"),
+                    errors: vec![],
+                },
+            )?;
+        if let Some(name) = params.get("format") {
+            return Format::from_name(name).map(|f| Self(Some(f))).map_err(|e| AppError::BadRequest {
+                detail: e.to_string(),
+                errors: vec![FieldError::new("/format", e.to_string())],
+            });
+        }
+        let accept =
+            parts.headers.get(header::ACCEPT).map(|v| String::from_utf8_lossy(v.as_bytes()).into_owned());
+        match accept {
+            Some(accept) if ACCEPT => Format::from_accept(&accept)
+                .map(Self)
+                .map_err(|e| AppError::NotAcceptable { detail: e.to_string() }),
+            _ => Ok(Self(None)),
         }
     }
 }

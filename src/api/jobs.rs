@@ -7,18 +7,21 @@ use axum::response::{IntoResponse, Response};
 use serde_json::json;
 
 use super::AppState;
-use super::extract::{IdempotencyKey, JobPath, PageQuery, SceneBody};
+use super::extract::{FormatChoice, IdempotencyKey, JobPath, PageQuery, SceneBody};
 use super::problem::AppError;
 use super::views::job_view;
 use crate::jobs::{Cancelled, JobRecord, Page, StoredResult, Submission};
 
 /// `POST /jobs`: queues a scene; `202` with the job and its `Location`. A repeated
-/// `Idempotency-Key` with the same body answers with the same job.
+/// `Idempotency-Key` with the same body answers with the same job. `?format=` sets the format
+/// the result is stored in (default: the scene's `output.format`).
 pub async fn submit(
     State(state): State<AppState>,
     IdempotencyKey(key): IdempotencyKey,
+    FormatChoice(format): FormatChoice<false>,
     body: SceneBody,
 ) -> Result<Response, AppError> {
+    let body = body.with_format(format)?;
     let submitted = state
         .jobs
         .submit(Submission {
@@ -58,12 +61,31 @@ pub async fn get(State(state): State<AppState>, JobPath(id): JobPath) -> Result<
     Ok(Json(job_view(&job)).into_response())
 }
 
-/// `GET /jobs/{id}/result`: the result of an ended job.
-pub async fn result(State(state): State<AppState>, JobPath(id): JobPath) -> Result<Response, AppError> {
+/// `GET /jobs/{id}/result`: the result of an ended job. It is stored once, in the format chosen
+/// at submission; asking (`?format=`, `Accept`) for another is a `406` that says which it is.
+pub async fn result(
+    State(state): State<AppState>,
+    JobPath(id): JobPath,
+    FormatChoice(format): FormatChoice<true>,
+) -> Result<Response, AppError> {
     let job = state.jobs.get(&id).await?.ok_or_else(|| AppError::JobNotFound { id: id.to_string() })?;
-    match state.jobs.result(&id).await? {
-        Some(result) if job.status.is_final() => Ok(result_response(&job, result)),
-        _ => Err(AppError::NoResult { id: job.id, status: job.status, message: job.message }),
+    let result = match state.jobs.result(&id).await? {
+        Some(result) if job.status.is_final() => result,
+        _ => return Err(AppError::NoResult { id: job.id, status: job.status, message: job.message }),
+    };
+    match format {
+        Some(wanted) if wanted.media_type() != result.media_type => Err(AppError::NotAcceptable {
+            detail: format!(
+                "job {id}'s result is stored as {}; to get {} ({}), submit the scene with ?format={} \
+                 or output.format `{}`",
+                result.media_type,
+                wanted.name(),
+                wanted.media_type(),
+                wanted.name(),
+                wanted.name()
+            ),
+        }),
+        _ => Ok(result_response(&job, result)),
     }
 }
 

@@ -51,6 +51,11 @@ pub enum AppError {
         /// The path asked for.
         path: String,
     },
+    /// 406: the result cannot be produced in any media type the client accepts.
+    NotAcceptable {
+        /// What was asked and what is available.
+        detail: String,
+    },
     /// 408: the request took longer than the server's request timeout.
     Timeout,
     /// 409: the job has no result to serve (yet, or ever).
@@ -136,6 +141,7 @@ impl AppError {
             Self::MalformedJson { .. } | Self::BadRequest { .. } => StatusCode::BAD_REQUEST,
             Self::NoRoute { .. } | Self::JobNotFound { .. } => StatusCode::NOT_FOUND,
             Self::MethodNotAllowed { .. } => StatusCode::METHOD_NOT_ALLOWED,
+            Self::NotAcceptable { .. } => StatusCode::NOT_ACCEPTABLE,
             Self::Timeout => StatusCode::REQUEST_TIMEOUT,
             Self::NoResult { .. } | Self::AlreadyEnded { .. } | Self::JobCancelled { .. } => {
                 StatusCode::CONFLICT
@@ -171,6 +177,7 @@ impl AppError {
                 "Method not allowed",
                 format!("{path} does not accept {method}; see /openapi.json for its methods"),
             ),
+            Self::NotAcceptable { detail } => ("not-acceptable", "Not acceptable", detail.clone()),
             Self::Timeout => {
                 ("timeout", "Request timed out", "the request took longer than the server allows".into())
             }

@@ -1,5 +1,6 @@
 //! `POST /simulate`: runs a small scene through the job queue and answers with its result.
 //!
+//! The result is in the format `?format=` or `Accept` names, else the scene's `output.format`.
 //! The job is an ordinary job (it shows in `GET /jobs`); the handler waits for it. Runs over the
 //! work budget (particles × steps) are refused with `413` and a pointer to `POST /jobs`. If the
 //! client goes away or the request times out, the job is cancelled.
@@ -9,13 +10,18 @@ use axum::http::{HeaderValue, header};
 use axum::response::Response;
 
 use super::AppState;
-use super::extract::SceneBody;
+use super::extract::{FormatChoice, SceneBody};
 use super::jobs::result_response;
 use super::problem::AppError;
 use crate::jobs::{Failure, JobId, JobStatus, Jobs, Submission};
 
 /// Runs the scene and returns its result; a diverged run is a `200` with `stats.status` `diverged`.
-pub async fn simulate(State(state): State<AppState>, body: SceneBody) -> Result<Response, AppError> {
+pub async fn simulate(
+    State(state): State<AppState>,
+    FormatChoice(format): FormatChoice<true>,
+    body: SceneBody,
+) -> Result<Response, AppError> {
+    let body = body.with_format(format)?;
     let submission = Submission {
         scene: body.scene,
         document: body.document,

@@ -10,6 +10,7 @@
 mod format;
 mod glb;
 mod json;
+mod json_read;
 mod npy;
 mod obj;
 mod pc2;
@@ -19,6 +20,7 @@ use std::io::{self, BufWriter, Write};
 
 pub use format::{Format, FormatError, check};
 pub use json::{stats_json, write_json};
+pub use json_read::{ReadError, read_json};
 
 use crate::run::Recording;
 use crate::scene::Field;

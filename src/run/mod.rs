@@ -19,7 +19,7 @@ pub use recording::{Diverged, Frames, Recording, Samples, Stats, Status};
 
 use glam::DVec3;
 
-use crate::scene::{Compiled, ErrorEstimateName, Field, Precision};
+use crate::scene::{Compiled, ErrorEstimateName, Field, FrameSelection, Precision};
 use crate::solver::{Real, Simulation, Vec3};
 use schedule::FrameSchedule;
 
@@ -102,7 +102,8 @@ where
     let finished = status == Status::Succeeded;
     let stable_dt = simulation.stable_dt();
     let mut stages: Vec<&'static str> = simulation.stages().to_vec();
-    let wants_normals = compiled.output.fields.contains(&Field::Normals);
+    let wants_normals =
+        compiled.output.fields.contains(&Field::Normals) && compiled.output.frames != FrameSelection::None;
     if wants_normals && !compiled.model.triangles.is_empty() && !stages.contains(&"normals") {
         stages.push("normals");
     }
@@ -159,7 +160,8 @@ where
     Samples: From<Vec<T>>,
 {
     fn new(compiled: &Compiled, simulation: &Simulation<T>) -> Self {
-        let wants = |f: Field| compiled.output.fields.contains(&f);
+        let records_frames = compiled.output.frames != FrameSelection::None;
+        let wants = |f: Field| records_frames && compiled.output.fields.contains(&f);
         let n = compiled.model.particle_count();
         Self {
             frames: FrameBuffers {

@@ -35,7 +35,7 @@ pub use integrators::{IntegratorKind, IntegratorSettings, LinearSolveStats};
 pub use model::{Model, Spring, SpringKind, SpringParams};
 pub use real::Real;
 pub use self_collision::SelfCollision;
-pub use simulation::{Config, Simulation};
+pub use simulation::{Config, STAGE_NAMES, Simulation};
 pub use stability::{Divergence, DivergenceReason, stable_step};
 pub use state::State;
 pub use vec3::Vec3;

@@ -21,6 +21,23 @@ use super::strain_limit::StrainLimit;
 use super::wind::WindConfig;
 use super::{Real, State, Vec3, normals, springs};
 
+/// Every stage name a simulation or a run can report, in the order a step runs them: the
+/// forces, then the constraints and contacts. `normals` is also the per-frame normals a run's
+/// output asks for.
+pub const STAGE_NAMES: [&str; 11] = [
+    "gravity",
+    "drag",
+    "springs",
+    "normals",
+    "wind",
+    "strain_limit",
+    "self_collision",
+    "plane",
+    "sphere",
+    "box",
+    "cylinder",
+];
+
 /// Everything about a run that is not the bodies themselves.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Config {

@@ -5,7 +5,7 @@ use std::sync::Mutex;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 use super::Sweep;
-use super::table::{Row, Table, compile_for_table, final_positions};
+use super::table::{Outcome, Table, compile_for_table};
 use crate::run::{Control, Recording, execute};
 use crate::scene::Scene;
 
@@ -37,38 +37,12 @@ pub fn run_locally(sweep: &Sweep, threads: usize) -> Table {
             });
         }
     });
-    let mut outcomes = results.into_iter().map(|m| m.into_inner().unwrap_or_else(|e| e.into_inner()));
-    let reference = sweep.reference.as_ref().map(|scene| {
-        let outcome = outcomes.next().flatten();
-        row_of(Vec::new(), scene, outcome.as_ref(), None)
+    let mut outcomes = results.into_iter().map(|m| match m.into_inner().unwrap_or_else(|e| e.into_inner()) {
+        Some(Ok(recording)) => Outcome::Finished(Box::new(recording)),
+        Some(Err(message)) => Outcome::Pending { status: "failed".into(), detail: Some(message) },
+        None => Outcome::Pending { status: "failed".into(), detail: Some("the run did not report".into()) },
     });
-    let reference_positions = match &reference {
-        Some((_, Some(positions))) => Some(positions.clone()),
-        _ => None,
-    };
-    let rows = sweep
-        .variants
-        .iter()
-        .zip(outcomes)
-        .map(|(variant, outcome)| {
-            row_of(variant.values.clone(), &variant.scene, outcome.as_ref(), reference_positions.as_deref()).0
-        })
-        .collect();
-    Table { pointers: sweep.pointers.clone(), rows, reference: reference.map(|(row, _)| row) }
-}
-
-fn row_of(
-    values: Vec<serde_json::Value>,
-    scene: &Scene,
-    outcome: Option<&Result<Recording, String>>,
-    reference: Option<&[f64]>,
-) -> (Row, Option<Vec<f64>>) {
-    match outcome {
-        Some(Ok(recording)) => (
-            Row::from_recording(values, recording, reference),
-            final_positions(recording).filter(|_| recording.has_final),
-        ),
-        Some(Err(message)) => (Row::failed(values, scene.integrator.kind().name(), message.clone()), None),
-        None => (Row::failed(values, scene.integrator.kind().name(), "the run did not report".into()), None),
-    }
+    let reference = sweep.reference.as_ref().and_then(|_| outcomes.next());
+    let variants: Vec<Outcome> = outcomes.collect();
+    Table::assemble(sweep, reference.as_ref(), &variants)
 }

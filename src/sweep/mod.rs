@@ -19,7 +19,7 @@ use thiserror::Error;
 
 pub use local::run_locally;
 pub use plot::write_svg;
-pub use table::{Convergence, Row, Table, write_csv};
+pub use table::{Convergence, Outcome, Row, Table, compile_for_table, final_positions, write_csv};
 
 use crate::scene::{FieldError, Scene};
 

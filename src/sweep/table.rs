@@ -81,10 +81,21 @@ impl Row {
 
     /// The row of a run that failed before it could report (a panic, a time limit).
     pub fn failed(values: Vec<Value>, integrator: &str, detail: String) -> Self {
+        Self::without_result(values, integrator, "failed", Some(detail))
+    }
+
+    /// The row of a run that has no result yet, or none to give: `status` says why (`queued`,
+    /// `running`, `failed`, `cancelled`).
+    pub fn without_result(
+        values: Vec<Value>,
+        integrator: &str,
+        status: &str,
+        detail: Option<String>,
+    ) -> Self {
         Self {
             values,
-            status: "failed".into(),
-            detail: Some(detail),
+            status: status.into(),
+            detail,
             integrator: integrator.into(),
             dt: f64::NAN,
             steps: 0,
@@ -119,6 +130,58 @@ fn distances(a: &[f64], b: &[f64]) -> (f64, f64) {
     let max = d.iter().copied().fold(0.0, f64::max);
     let rms = if d.is_empty() { 0.0 } else { (d.iter().map(|x| x * x).sum::<f64>() / d.len() as f64).sqrt() };
     (max, rms)
+}
+
+/// Where one run of a sweep stands.
+#[derive(Debug)]
+pub enum Outcome {
+    /// It finished with a recording (succeeded, diverged or cancelled).
+    Finished(Box<Recording>),
+    /// It has no recording: its status (`queued`, `running`, `failed`, ...) and why.
+    Pending {
+        /// The status to show.
+        status: String,
+        /// Why, for a failure.
+        detail: Option<String>,
+    },
+}
+
+impl Table {
+    /// Makes the table of a sweep from the outcome of its reference run (when it has one) and
+    /// of each variant, in variant order.
+    pub fn assemble(sweep: &super::Sweep, reference: Option<&Outcome>, variants: &[Outcome]) -> Self {
+        let row =
+            |values: Vec<Value>, scene: &Scene, outcome: &Outcome, against: Option<&[f64]>| match outcome {
+                Outcome::Finished(recording) => Row::from_recording(values, recording, against),
+                Outcome::Pending { status, detail } => {
+                    Row::without_result(values, scene.integrator.kind().name(), status, detail.clone())
+                }
+            };
+        let reference_positions = match reference {
+            Some(Outcome::Finished(recording)) if recording.has_final => final_positions(recording),
+            _ => None,
+        };
+        let reference_row = sweep
+            .reference
+            .as_ref()
+            .zip(reference)
+            .map(|(scene, outcome)| row(Vec::new(), scene, outcome, None));
+        let rows = sweep
+            .variants
+            .iter()
+            .zip(variants)
+            .map(|(variant, outcome)| {
+                row(variant.values.clone(), &variant.scene, outcome, reference_positions.as_deref())
+            })
+            .collect();
+        Table { pointers: sweep.pointers.clone(), rows, reference: reference_row }
+    }
+
+    /// Whether every run of the sweep has finished.
+    pub fn is_complete(&self) -> bool {
+        let done = |r: &Row| !matches!(r.status.as_str(), "queued" | "running");
+        self.rows.iter().all(done) && self.reference.as_ref().is_none_or(done)
+    }
 }
 
 /// The observed order of one group of rows that differ only in `dt`.

@@ -1,0 +1,254 @@
+//! Reading a JSON result back into a [`Recording`]: the exact inverse of
+//! [`write_json`](super::write_json).
+//!
+//! The JSON result is drape's canonical form of a run: it carries every number in the run's own
+//! precision, bit for bit, and every statistic. A service can keep it alone and still answer in
+//! any other format later, by reading it back and encoding the recording again; writing what
+//! this reads gives back the same bytes.
+
+use serde::Deserialize;
+use serde_json::Value;
+use thiserror::Error;
+
+use crate::run::{Diverged, ErrorEstimate, EstimateOutcome, Frames, Recording, Samples, Stats, Status};
+use crate::scene::{BodyInfo, DtSource, ErrorEstimateName, FrameSelection, Precision};
+use crate::solver::{Energy, IntegratorKind, LinearSolveStats, STAGE_NAMES};
+
+/// Why bytes are not a JSON result drape wrote.
+#[derive(Debug, Error)]
+pub enum ReadError {
+    /// Not JSON, or not of the result's shape.
+    #[error("not a drape JSON result: {0}")]
+    Shape(#[from] serde_json::Error),
+    /// A field holds a value drape does not write.
+    #[error("not a drape JSON result: `{field}` is {value}")]
+    Value {
+        /// The field.
+        field: &'static str,
+        /// What it held.
+        value: String,
+    },
+}
+
+#[derive(Deserialize)]
+struct ResultIn {
+    mesh: MeshIn,
+    #[serde(default)]
+    frames: Option<Vec<FrameIn>>,
+    #[serde(default, rename = "final")]
+    last: Option<FrameIn>,
+    stats: Value,
+}
+
+#[derive(Deserialize)]
+struct MeshIn {
+    particles: usize,
+    springs: usize,
+    triangles: Vec<u32>,
+    bodies: Vec<BodyIn>,
+}
+
+#[derive(Deserialize)]
+struct BodyIn {
+    name: String,
+    #[serde(rename = "type")]
+    kind: String,
+    offset: usize,
+    count: usize,
+}
+
+#[derive(Deserialize)]
+struct FrameIn {
+    t: f64,
+    positions: Option<Vec<f64>>,
+    velocities: Option<Vec<f64>>,
+    normals: Option<Vec<f64>>,
+    energy: Option<EnergyIn>,
+    strain: Option<Vec<f64>>,
+}
+
+#[derive(Deserialize)]
+struct EnergyIn {
+    kinetic: f64,
+    gravitational: f64,
+    spring: f64,
+}
+
+impl From<&EnergyIn> for Energy {
+    fn from(e: &EnergyIn) -> Self {
+        Energy { kinetic: e.kinetic, gravitational: e.gravitational, spring: e.spring }
+    }
+}
+
+/// Reads a JSON result.
+pub fn read_json(bytes: &[u8]) -> Result<Recording, ReadError> {
+    let result: ResultIn = serde_json::from_slice(bytes)?;
+    let stats = read_stats(&result.stats)?;
+    let (selection, frames, has_final) = match (result.frames, result.last) {
+        (Some(frames), last) => (FrameSelection::All, frames, last.is_some()),
+        (None, Some(last)) => (FrameSelection::Final, vec![last], true),
+        (None, None) => (FrameSelection::None, Vec::new(), false),
+    };
+    // A field is recorded when the first frame carries it.
+    let samples = |pick: fn(&FrameIn) -> Option<&Vec<f64>>| -> Option<Samples> {
+        pick(frames.first()?)?;
+        let values = frames.iter().flat_map(|f| pick(f).into_iter().flatten().copied());
+        Some(match stats.precision {
+            Precision::F32 => Samples::F32(values.map(|v| v as f32).collect()),
+            Precision::F64 => Samples::F64(values.collect()),
+        })
+    };
+    let bodies = result
+        .mesh
+        .bodies
+        .into_iter()
+        .map(|b| {
+            let kind = ["cloth", "chain", "lattice", "mesh"]
+                .into_iter()
+                .find(|k| *k == b.kind)
+                .ok_or(ReadError::Value { field: "mesh.bodies.type", value: b.kind.clone() })?;
+            Ok(BodyInfo { name: b.name, kind, offset: b.offset, count: b.count })
+        })
+        .collect::<Result<_, ReadError>>()?;
+    let recorded = Frames {
+        times: frames.iter().map(|f| f.t).collect(),
+        positions: samples(|f| f.positions.as_ref()),
+        velocities: samples(|f| f.velocities.as_ref()),
+        normals: samples(|f| f.normals.as_ref()),
+        energy: frames
+            .first()
+            .and_then(|f| f.energy.as_ref())
+            .map(|_| frames.iter().filter_map(|f| f.energy.as_ref()).map(Energy::from).collect()),
+        strain: frames
+            .first()
+            .and_then(|f| f.strain.as_ref())
+            .map(|_| frames.iter().flat_map(|f| f.strain.iter().flatten().copied()).collect()),
+    };
+    Ok(Recording {
+        particles: result.mesh.particles,
+        springs: result.mesh.springs,
+        triangles: result.mesh.triangles.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect(),
+        bodies,
+        selection,
+        frames: recorded,
+        has_final,
+        stats,
+    })
+}
+
+/// Looks a name up among those drape writes.
+fn named<T: Copy>(field: &'static str, value: &Value, options: &[(&str, T)]) -> Result<T, ReadError> {
+    let name = value.as_str().unwrap_or_default();
+    options
+        .iter()
+        .find(|(n, _)| *n == name)
+        .map(|(_, t)| *t)
+        .ok_or(ReadError::Value { field, value: value.to_string() })
+}
+
+fn number(field: &'static str, value: &Value) -> Result<f64, ReadError> {
+    value.as_f64().ok_or(ReadError::Value { field, value: value.to_string() })
+}
+
+fn count(field: &'static str, value: &Value) -> Result<u64, ReadError> {
+    value.as_u64().ok_or(ReadError::Value { field, value: value.to_string() })
+}
+
+fn optional<T>(
+    value: &Value,
+    read: impl FnOnce(&Value) -> Result<T, ReadError>,
+) -> Result<Option<T>, ReadError> {
+    if value.is_null() { Ok(None) } else { read(value).map(Some) }
+}
+
+fn read_stats(s: &Value) -> Result<Stats, ReadError> {
+    let integrators: Vec<(&str, IntegratorKind)> =
+        IntegratorKind::ALL.iter().map(|k| (k.name(), *k)).collect();
+    let steps = count("stats.steps", &s["steps"])?;
+    let stages = s["stages"]
+        .as_array()
+        .ok_or(ReadError::Value { field: "stats.stages", value: s["stages"].to_string() })?
+        .iter()
+        .map(|stage| named("stats.stages", stage, &STAGE_NAMES.map(|n| (n, n))))
+        .collect::<Result<_, _>>()?;
+    Ok(Stats {
+        status: named(
+            "stats.status",
+            &s["status"],
+            &[
+                ("succeeded", Status::Succeeded),
+                ("diverged", Status::Diverged),
+                ("cancelled", Status::Cancelled),
+            ],
+        )?,
+        wall_time_s: number("stats.wall_time_s", &s["wall_time_s"])?,
+        steps,
+        dt: number("stats.dt", &s["dt"])?,
+        dt_source: named(
+            "stats.dt_source",
+            &s["dt_source"],
+            &[("scene", DtSource::Scene), ("stability", DtSource::Stability)],
+        )?,
+        integrator: named("stats.integrator", &s["integrator"], &integrators)?,
+        precision: named(
+            "stats.precision",
+            &s["precision"],
+            &[("f32", Precision::F32), ("f64", Precision::F64)],
+        )?,
+        stages,
+        energy: optional(&s["energy"], |e| Ok(Energy::from(&EnergyIn::deserialize(e)?)))?,
+        max_strain: optional(&s["max_strain"], |v| number("stats.max_strain", v))?,
+        stable_dt: optional(&s["stable_dt"], |v| number("stats.stable_dt", v))?,
+        diverged: optional(&s["diverged"], |d| {
+            Ok(Diverged {
+                step: count("stats.diverged.step", &d["step"])?,
+                t: number("stats.diverged.t", &d["t"])?,
+                reason: d["reason"].as_str().unwrap_or_default().to_string(),
+                suggested_dt: optional(&d["suggested_dt"], |v| number("stats.diverged.suggested_dt", v))?,
+            })
+        })?,
+        stopped_at_rest: optional(&s["stopped_at_rest"], |v| number("stats.stopped_at_rest", v))?,
+        linear_solver: optional(&s["linear_solver"], |l| {
+            let mean = number("stats.linear_solver.mean_iterations", &l["mean_iterations"])?;
+            Ok(LinearSolveStats {
+                tolerance: number("stats.linear_solver.tolerance", &l["tolerance"])?,
+                max_iterations: count("stats.linear_solver.max_iterations", &l["max_iterations"])? as usize,
+                last_iterations: count("stats.linear_solver.last_iterations", &l["last_iterations"])?
+                    as usize,
+                most_iterations: count("stats.linear_solver.most_iterations", &l["most_iterations"])?
+                    as usize,
+                total_iterations: (mean * steps as f64).round() as u64,
+                unconverged_solves: count(
+                    "stats.linear_solver.unconverged_solves",
+                    &l["unconverged_solves"],
+                )?,
+                last_residual: number("stats.linear_solver.last_residual", &l["last_residual"])?,
+            })
+        })?,
+        error: optional(&s["error"], read_error)?,
+    })
+}
+
+fn read_error(e: &Value) -> Result<ErrorEstimate, ReadError> {
+    let outcome = match e.get("unavailable") {
+        Some(reason) => {
+            EstimateOutcome::Unavailable { reason: reason.as_str().unwrap_or_default().to_string() }
+        }
+        None => EstimateOutcome::Estimate {
+            max: number("stats.error.max", &e["max"])?,
+            rms: number("stats.error.rms", &e["rms"])?,
+            observed_order: optional(&e["observed_order"], |v| number("stats.error.observed_order", v))?,
+            reliable: e["reliable"].as_bool(),
+        },
+    };
+    Ok(ErrorEstimate {
+        method: named(
+            "stats.error.method",
+            &e["method"],
+            &[("richardson", ErrorEstimateName::Richardson), ("richardson3", ErrorEstimateName::Richardson3)],
+        )?,
+        order: count("stats.error.order", &e["order"])? as u32,
+        outcome,
+        extra_wall_time_s: number("stats.error.extra_wall_time_s", &e["extra_wall_time_s"])?,
+    })
+}
