@@ -79,9 +79,18 @@ async fn two_instances_share_one_postgres_queue() {
     let long = submit(&client, &one.base, LONG).await;
     wait_for(&client, &one.base, &long, under_way).await;
     let (runner, other) = if runs_on(&long, &one, &two).await { (&one, &two) } else { (&two, &one) };
+    // The other instance follows the job's events through the store.
+    let events = client.get(format!("{}/jobs/{long}/events", other.base)).send().await.unwrap();
     let response = client.delete(format!("{}/jobs/{long}", other.base)).send().await.unwrap();
     assert_eq!(response.status(), 202);
     let cancelled = wait_for(&client, &runner.base, &long, ended).await;
+    let stream =
+        tokio::time::timeout(serve::PATIENCE, events.text()).await.expect("the stream ends").unwrap();
+    let end = stream
+        .split("\n\n")
+        .find_map(|block| block.strip_prefix("event: end\ndata: "))
+        .unwrap_or_else(|| panic!("no end event in {stream:?}"));
+    assert_eq!(serde_json::from_str::<serde_json::Value>(end).unwrap()["status"], "cancelled");
     assert_eq!(
         (cancelled["status"].as_str(), cancelled["message"].as_str()),
         (Some("cancelled"), Some("cancelled by request"))
