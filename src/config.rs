@@ -7,7 +7,7 @@ use std::time::Duration;
 use clap::Args;
 
 use crate::api::ApiConfig;
-use crate::jobs::{JobsConfig, Limits};
+use crate::jobs::{JobsConfig, Limits, StoreUrl};
 
 /// How the server runs and what it accepts.
 #[derive(Args, Clone, Debug)]
@@ -15,6 +15,17 @@ pub struct Config {
     /// Address to listen on (port 0 picks a free port).
     #[arg(long, env = "DRAPE_ADDR", default_value = "127.0.0.1:8080")]
     pub addr: SocketAddr,
+    /// Where jobs and results are kept: `sqlite://PATH` (one instance; the file is created),
+    /// `postgres://USER@HOST/DB` (any number of instances sharing one queue) or `memory`.
+    #[arg(long, env = "DRAPE_STORE", default_value = "sqlite://drape.db")]
+    pub store: StoreUrl,
+    /// Seconds a result is kept after its job ends.
+    #[arg(long, env = "DRAPE_RESULT_TTL", default_value = "86400", value_parser = seconds)]
+    pub result_ttl: Duration,
+    /// Seconds a running job stays this instance's without a renewal (renewed 4 times a second);
+    /// a job whose instance died runs again elsewhere after this.
+    #[arg(long, env = "DRAPE_LEASE", default_value = "30", value_parser = lease_seconds)]
+    pub lease: Duration,
     /// Worker threads that run simulations [default: one per core].
     #[arg(long, env = "DRAPE_WORKERS", value_parser = clap::value_parser!(u16).range(1..))]
     pub workers: Option<u16>,
@@ -52,7 +63,7 @@ pub struct Config {
     /// Origins a web page may call from (comma-separated; `*` for any).
     #[arg(long, env = "DRAPE_CORS_ORIGINS", default_value = "*", value_delimiter = ',')]
     pub cors_origins: Vec<String>,
-    /// Ended jobs kept in memory with their results; older ones are forgotten.
+    /// With `--store memory`: ended jobs kept with their results; older ones are forgotten.
     #[arg(long, env = "DRAPE_RETAIN_JOBS", default_value_t = crate::jobs::MemoryStore::DEFAULT_RETAIN)]
     pub retain_jobs: usize,
     /// Seconds running jobs get to finish on SIGINT or SIGTERM before they are cancelled.
@@ -74,6 +85,8 @@ impl Config {
                 max_output_values: self.max_output_values,
             },
             before_run: None,
+            lease: self.lease,
+            result_ttl: self.result_ttl,
         }
     }
 
@@ -96,6 +109,15 @@ fn seconds(text: &str) -> Result<Duration, String> {
         .map_err(|_| format!("`{text}` is not a non-negative, finite number of seconds"))
 }
 
+/// Reads a lease: long enough to be renewed several times over.
+fn lease_seconds(text: &str) -> Result<Duration, String> {
+    let lease = seconds(text)?;
+    if lease < Duration::from_secs(1) {
+        return Err(format!("a lease of {text} s is too short to be renewed in time; give at least 1"));
+    }
+    Ok(lease)
+}
+
 #[cfg(test)]
 mod tests {
     use clap::Parser;
@@ -114,6 +136,9 @@ mod tests {
         assert_eq!(cli.config.addr.to_string(), "127.0.0.1:8080");
         assert_eq!(cli.config.jobs().limits, Limits::default());
         assert_eq!(cli.config.cors_origins, ["*"]);
+        assert_eq!(cli.config.store, StoreUrl::Sqlite("drape.db".into()));
+        assert_eq!(cli.config.jobs().result_ttl, Duration::from_secs(86_400));
+        assert_eq!(cli.config.jobs().lease, Duration::from_secs(30));
         let cli = Cli::parse_from([
             "drape",
             "--workers",
@@ -134,6 +159,8 @@ mod tests {
             ["drape", "--workers", "0"],
             ["drape", "--job-wall-time", "-1"],
             ["drape", "--shutdown-grace", "soon"],
+            ["drape", "--store", "mysql://db"],
+            ["drape", "--lease", "0.2"],
         ] {
             assert!(Cli::try_parse_from(args).is_err(), "{args:?}");
         }

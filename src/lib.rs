@@ -10,8 +10,8 @@
 //! - [`output`]: encoders that turn a recording into the bytes a client asked for.
 //! - [`sweep`]: parameter sweeps: variants of a scene at JSON Pointers, run into one table with
 //!   errors, CSV and a work-precision plot.
-//! - [`jobs`]: the queue, the worker threads that run scenes off the async runtime, limits,
-//!   cancellation, progress and the job store.
+//! - [`jobs`]: the worker threads that run scenes off the async runtime, limits, cancellation,
+//!   progress, and the job stores (memory, SQLite, PostgreSQL) that are also the queue.
 //! - [`api`]: the HTTP API over [`jobs`]: routes, problem+json errors, limits, OpenAPI.
 //! - [`config`] and [`server`]: the settings of `drape serve` and the server's life.
 //!

@@ -1,24 +1,31 @@
 //! Running the HTTP service: bind, serve, and shut down gracefully.
 //!
+//! The job store named by `--store` is opened (and migrated) before the address is printed.
 //! On the shutdown signal the server stops accepting connections and the job system stops
-//! taking jobs: queued jobs are cancelled, running ones get the grace period to finish and are
-//! then cancelled (they stop within one batch of steps). Open requests, such as a `/simulate`
-//! waiting for its job or an event stream, end when their jobs do.
+//! taking jobs: running ones get the grace period to finish. Then, on a durable store, queued
+//! jobs stay queued and those still running go back to the queue for the next instance; on the
+//! memory store both are cancelled (running ones stop within one batch of steps). Open requests,
+//! such as a `/simulate` waiting for its job or an event stream, end when their jobs do or, for
+//! jobs left to the next instance, at once.
 
 use std::future::Future;
-use std::sync::Arc;
 use std::time::Duration;
 
 use tokio::net::TcpListener;
 
 use crate::api::{AppState, app};
 use crate::config::Config;
-use crate::jobs::{Jobs, MemoryStore};
+use crate::jobs::Jobs;
 
 /// Serves until `shutdown` completes, then shuts down within the configured grace period.
 pub async fn run(config: Config, shutdown: impl Future<Output = ()> + Send + 'static) -> std::io::Result<()> {
     let listener = TcpListener::bind(config.addr).await?;
-    let jobs = Jobs::start(Arc::new(MemoryStore::retaining(config.retain_jobs)), config.jobs());
+    let jobs_config = config.jobs();
+    // Workers, the watchdog and the HTTP side each hold a connection at times.
+    let connections = u32::try_from(jobs_config.workers).unwrap_or(u32::MAX).saturating_add(4);
+    let store = config.store.open(connections, config.retain_jobs).await.map_err(std::io::Error::other)?;
+    tracing::info!(store = %config.store, "job store open");
+    let jobs = Jobs::start(store, jobs_config);
     // The first line on standard output is the address, for scripts and tests that pick port 0.
     println!("drape listening on http://{}", listener.local_addr()?);
     tracing::info!(addr = %listener.local_addr()?, workers = jobs.config().workers, "serving");

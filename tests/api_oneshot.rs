@@ -85,9 +85,11 @@ async fn jobs_are_queued_listed_looked_up_and_their_results_served() {
     assert_eq!(job["links"]["result"], format!("/jobs/{id}/result"));
     assert_eq!((job["particles"].as_u64(), job["springs"].as_u64()), (Some(3), Some(2)));
     assert_eq!(job["progress"]["steps"], 10);
+    assert_eq!(job["attempts"], 0, "not started yet");
 
     let ended = poll_until(&app, &id, is_final).await;
     assert_eq!(ended["status"], "succeeded");
+    assert_eq!(ended["attempts"], 1);
     assert_eq!(ended["stats"]["steps"], 10);
     assert!(ended["finished_at"].as_str().unwrap().ends_with('Z'));
 

@@ -29,7 +29,7 @@ fn every_curl_script_works_against_drape_serve() {
         panic!("curl is needed to check examples/curl/");
     }
     let mut server = Command::new(env!("CARGO_BIN_EXE_drape"))
-        .args(["serve", "--addr", "127.0.0.1:0", "--workers", "1"])
+        .args(["serve", "--store", "memory", "--addr", "127.0.0.1:0", "--workers", "1"])
         .env("RUST_LOG", "warn")
         .stdout(Stdio::piped())
         .stderr(Stdio::null())

@@ -17,7 +17,17 @@ const SHORT: &str = r#"{"duration": 20, "dt": 0.001, "bodies": [{"type": "chain"
 /// Starts `drape serve` on a free port and returns it with its base URL.
 fn serve(grace: &str) -> (Child, String) {
     let mut child = Command::new(env!("CARGO_BIN_EXE_drape"))
-        .args(["serve", "--addr", "127.0.0.1:0", "--workers", "1", "--shutdown-grace", grace])
+        .args([
+            "serve",
+            "--store",
+            "memory",
+            "--addr",
+            "127.0.0.1:0",
+            "--workers",
+            "1",
+            "--shutdown-grace",
+            grace,
+        ])
         .env("RUST_LOG", "warn")
         .stdout(Stdio::piped())
         .stderr(Stdio::null())

@@ -3,7 +3,10 @@
 //! The stream samples the job's progress (read lock-free from the run's `Control`) at most
 //! [`SAMPLES_PER_SECOND`] times a second and sends a `progress` event (`step`, `steps`, `t`,
 //! `fraction`) when it has moved, then one `end` event carrying the job as `GET /jobs/{id}` shows
-//! it, and closes. A status change wakes the stream at once, so the end is not delayed.
+//! it, and closes. A status change of a job running here wakes the stream at once, so the end is
+//! not delayed; a job queued or running on another instance is followed through the store at the
+//! same rate. If this server shuts down while the job is not running here, the stream ends with
+//! an `error` event: the job stays in the store for another instance.
 
 use std::convert::Infallible;
 use std::time::Duration;
@@ -12,6 +15,7 @@ use axum::extract::State;
 use axum::response::sse::{Event, KeepAlive, Sse};
 use futures_util::Stream;
 use futures_util::stream;
+use serde_json::json;
 use tokio::sync::watch;
 use tokio::time::{Instant, MissedTickBehavior, interval_at};
 
@@ -79,6 +83,17 @@ impl Follow {
             if job.status.is_final() {
                 self.ended = true;
                 return Some(Event::default().event("end").data(job_view(&job).to_string()));
+            }
+            if self.status.is_none() {
+                // The job may have started here since the stream opened.
+                self.status = self.jobs.watch(&self.id);
+                if self.status.is_none() && self.jobs.handing_over() {
+                    self.ended = true;
+                    let detail = json!({"detail": format!(
+                        "this server is shutting down; job {} stays {} in the store and runs on another \
+                         instance or after a restart", self.id, job.status.name())});
+                    return Some(Event::default().event("error").data(detail.to_string()));
+                }
             }
             if self.sample_due && self.last_step != Some(job.steps_done) {
                 self.last_step = Some(job.steps_done);

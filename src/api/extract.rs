@@ -20,6 +20,8 @@ pub struct SceneBody {
     pub scene: Scene,
     /// [`fingerprint`] of the document, for idempotency.
     pub fingerprint: u64,
+    /// The document, as the job store keeps it.
+    pub document: Value,
 }
 
 impl SceneBody {
@@ -29,6 +31,13 @@ impl SceneBody {
         let Some(format) = choice else { return Ok(self) };
         crate::output::check(format, &self.scene.output).map_err(AppError::InvalidScene)?;
         self.scene.output.format = format;
+        // The stored document is what a worker runs, on any instance: it carries the choice too.
+        if let Some(scene) = self.document.as_object_mut() {
+            let output = scene.entry("output").or_insert_with(|| serde_json::json!({}));
+            if let Some(output) = output.as_object_mut() {
+                output.insert("format".into(), format.name().into());
+            }
+        }
         self.fingerprint = fingerprint(&serde_json::json!([self.fingerprint, format.name()]));
         Ok(self)
     }
@@ -61,8 +70,8 @@ impl<S: Send + Sync> FromRequest<S> for SceneBody {
             message: e.to_string(),
         })?;
         let fingerprint = fingerprint(&document);
-        let scene = Scene::from_value(document)?;
-        Ok(Self { scene, fingerprint })
+        let scene = Scene::from_value(document.clone())?;
+        Ok(Self { scene, fingerprint, document })
     }
 }
 

@@ -26,6 +26,7 @@ pub async fn submit(
         .jobs
         .submit(Submission {
             scene: body.scene,
+            document: body.document,
             fingerprint: body.fingerprint,
             idempotency_key: key,
             max_work: None,

@@ -71,7 +71,7 @@ pub async fn metrics(State(state): State<AppState>) -> Result<Response, AppError
         "queue_length",
         "gauge",
         "Jobs waiting for a worker.",
-        &[(String::new(), jobs.queue_len() as f64)],
+        &[(String::new(), jobs.queue_len().await? as f64)],
     );
     let capacity = jobs.config().queue_capacity as f64;
     family("queue_capacity", "gauge", "Jobs that may wait for a worker.", &[(String::new(), capacity)]);

@@ -24,6 +24,7 @@ pub async fn simulate(
     let body = body.with_format(format)?;
     let submission = Submission {
         scene: body.scene,
+        document: body.document,
         fingerprint: body.fingerprint,
         idempotency_key: None,
         max_work: Some(state.config.simulate_work_budget),

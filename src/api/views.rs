@@ -14,6 +14,7 @@ pub fn job_view(job: &JobRecord) -> Value {
         "progress": progress(job),
         "particles": job.plan.particles,
         "springs": job.plan.springs,
+        "attempts": job.attempts,
         "links": {
             "self": format!("/jobs/{id}"),
             "result": format!("/jobs/{id}/result"),

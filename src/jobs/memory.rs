@@ -9,7 +9,9 @@ use std::sync::Mutex;
 
 use async_trait::async_trait;
 
-use super::store::{Inserted, JobStore, Outcome, Page, StoreError, StoredResult};
+use super::store::{
+    CancelRequest, Claimed, Inserted, JobStore, Lease, Outcome, Page, Renewed, StoreError, StoredResult,
+};
 use super::{JobId, JobRecord, JobStatus};
 
 /// Jobs in a map, in submission order.
@@ -32,7 +34,36 @@ struct State {
 
 struct Entry {
     record: JobRecord,
+    scene: String,
+    lease: Option<Lease>,
+    cancel_requested: bool,
     result: Option<StoredResult>,
+}
+
+impl Entry {
+    fn held_by(&self, owner: &str) -> bool {
+        self.record.status == JobStatus::Running && self.lease.as_ref().is_some_and(|l| l.owner == owner)
+    }
+
+    fn claimable(&self, now_ms: u64) -> bool {
+        match self.record.status {
+            JobStatus::Queued => true,
+            JobStatus::Running => self.lease.as_ref().is_none_or(|l| l.until_ms < now_ms),
+            _ => false,
+        }
+    }
+
+    fn end(&mut self, finished_ms: u64, outcome: Outcome) {
+        let record = &mut self.record;
+        record.status = outcome.status;
+        record.finished_ms = Some(finished_ms);
+        record.steps_done = outcome.steps_done;
+        record.message = outcome.message;
+        record.failure = outcome.failure;
+        record.stats = outcome.stats;
+        self.result = outcome.result;
+        self.lease = None;
+    }
 }
 
 impl MemoryStore {
@@ -66,8 +97,10 @@ impl State {
         self.jobs.get_mut(id).ok_or_else(|| StoreError::NotFound(id.clone()))
     }
 
-    /// Forgets the oldest ended jobs until at most `retain` are left.
-    fn evict(&mut self, retain: usize) {
+    /// Counts a job that just ended, and forgets the oldest ended jobs until at most `retain`
+    /// are left.
+    fn ended_one(&mut self, retain: usize) {
+        self.ended += 1;
         let mut excess = self.ended.saturating_sub(retain);
         let mut evicted = Vec::new();
         for (&sequence, id) in &self.order {
@@ -90,9 +123,24 @@ impl State {
     }
 }
 
+fn cancelled(steps_done: u64, message: &str) -> Outcome {
+    Outcome {
+        status: JobStatus::Cancelled,
+        steps_done,
+        message: Some(message.to_string()),
+        failure: None,
+        stats: None,
+        result: None,
+    }
+}
+
 #[async_trait]
 impl JobStore for MemoryStore {
-    async fn insert(&self, job: JobRecord) -> Result<Inserted, StoreError> {
+    fn durable(&self) -> bool {
+        false
+    }
+
+    async fn insert(&self, job: JobRecord, scene: &str) -> Result<Inserted, StoreError> {
         self.with(|s| {
             if let Some(key) = &job.idempotency {
                 if let Some(holder) = s.keys.get(&key.key) {
@@ -102,7 +150,14 @@ impl JobStore for MemoryStore {
             }
             s.order.insert(s.next, job.id.clone());
             s.next += 1;
-            s.jobs.insert(job.id.clone(), Entry { record: job, result: None });
+            let entry = Entry {
+                record: job,
+                scene: scene.to_string(),
+                lease: None,
+                cancel_requested: false,
+                result: None,
+            };
+            s.jobs.insert(entry.record.id.clone(), entry);
             Ok(Inserted::New)
         })
     }
@@ -136,44 +191,113 @@ impl JobStore for MemoryStore {
         }))
     }
 
-    async fn mark_running(&self, id: &JobId, started_ms: u64) -> Result<(), StoreError> {
-        self.with(|s| {
-            let record = &mut s.entry(id)?.record;
+    async fn count_queued(&self) -> Result<u64, StoreError> {
+        Ok(self.with(|s| s.jobs.values().filter(|e| e.record.status == JobStatus::Queued).count() as u64))
+    }
+
+    async fn claim(&self, lease: &Lease, now_ms: u64) -> Result<Option<Claimed>, StoreError> {
+        Ok(self.with(|s| {
+            let id = s.order.values().find(|id| s.jobs[*id].claimable(now_ms))?.clone();
+            let entry = s.jobs.get_mut(&id)?;
+            entry.lease = Some(lease.clone());
+            let record = &mut entry.record;
             record.status = JobStatus::Running;
-            record.started_ms = Some(started_ms);
-            Ok(())
-        })
+            record.started_ms = Some(now_ms);
+            record.steps_done = 0;
+            record.attempts += 1;
+            Some(Claimed { record: record.clone(), scene: entry.scene.clone() })
+        }))
     }
 
-    async fn set_progress(&self, id: &JobId, steps_done: u64) -> Result<(), StoreError> {
-        self.with(|s| {
-            let record = &mut s.entry(id)?.record;
-            if record.status == JobStatus::Running {
-                record.steps_done = steps_done;
-            }
-            Ok(())
-        })
-    }
-
-    async fn finish(&self, id: &JobId, finished_ms: u64, outcome: Outcome) -> Result<(), StoreError> {
-        let retain = self.retain;
+    async fn renew(&self, id: &JobId, lease: &Lease, steps_done: u64) -> Result<Renewed, StoreError> {
         self.with(|s| {
             let entry = s.entry(id)?;
-            let newly_ended = !entry.record.status.is_final();
-            let record = &mut entry.record;
-            record.status = outcome.status;
-            record.finished_ms = Some(finished_ms);
-            record.steps_done = outcome.steps_done;
-            record.message = outcome.message;
-            record.failure = outcome.failure;
-            record.stats = outcome.stats;
-            entry.result = outcome.result;
-            if newly_ended {
-                s.ended += 1;
-                s.evict(retain);
+            if !entry.held_by(&lease.owner) {
+                return Ok(Renewed::Lost);
+            }
+            entry.lease = Some(lease.clone());
+            entry.record.steps_done = steps_done;
+            Ok(Renewed::Held { cancel_requested: entry.cancel_requested })
+        })
+    }
+
+    async fn finish(
+        &self,
+        id: &JobId,
+        owner: &str,
+        finished_ms: u64,
+        outcome: Outcome,
+    ) -> Result<bool, StoreError> {
+        self.with(|s| {
+            let entry = s.entry(id)?;
+            if !entry.held_by(owner) {
+                return Ok(false);
+            }
+            entry.end(finished_ms, outcome);
+            s.ended_one(self.retain);
+            Ok(true)
+        })
+    }
+
+    async fn release(&self, id: &JobId, owner: &str) -> Result<(), StoreError> {
+        self.with(|s| {
+            let entry = s.entry(id)?;
+            if entry.held_by(owner) {
+                entry.lease = None;
+                entry.record.status = JobStatus::Queued;
+                entry.record.steps_done = 0;
             }
             Ok(())
         })
+    }
+
+    async fn request_cancel(
+        &self,
+        id: &JobId,
+        now_ms: u64,
+        message: &str,
+    ) -> Result<Option<CancelRequest>, StoreError> {
+        Ok(self.with(|s| {
+            let entry = s.jobs.get_mut(id)?;
+            Some(if entry.record.status.is_final() {
+                CancelRequest::AlreadyEnded(entry.record.clone())
+            } else if entry.claimable(now_ms) {
+                entry.end(now_ms, cancelled(entry.record.steps_done, message));
+                let record = entry.record.clone();
+                s.ended_one(self.retain);
+                CancelRequest::Cancelled(record)
+            } else {
+                entry.cancel_requested = true;
+                CancelRequest::Requested(entry.record.clone())
+            })
+        }))
+    }
+
+    async fn cancel_queued(&self, now_ms: u64, message: &str) -> Result<Vec<JobId>, StoreError> {
+        Ok(self.with(|s| {
+            let mut ids = Vec::new();
+            for entry in s.jobs.values_mut().filter(|e| e.record.status == JobStatus::Queued) {
+                entry.end(now_ms, cancelled(0, message));
+                ids.push(entry.record.id.clone());
+            }
+            for _ in &ids {
+                s.ended_one(self.retain);
+            }
+            ids
+        }))
+    }
+
+    async fn drop_results(&self, before_ms: u64) -> Result<u64, StoreError> {
+        Ok(self.with(|s| {
+            let mut dropped = 0;
+            for entry in s.jobs.values_mut() {
+                if entry.result.is_some() && entry.record.finished_ms.is_some_and(|t| t < before_ms) {
+                    entry.result = None;
+                    dropped += 1;
+                }
+            }
+            dropped
+        }))
     }
 
     async fn result(&self, id: &JobId) -> Result<Option<StoredResult>, StoreError> {
@@ -210,12 +334,14 @@ mod tests {
     fn only_the_most_recent_ended_jobs_are_kept() {
         let store = MemoryStore::retaining(2);
         let jobs: Vec<JobRecord> = ["a", "b", "c", "d"].map(job).into();
+        let lease = Lease { owner: "me".into(), until_ms: u64::MAX };
         for j in &jobs {
-            assert_eq!(block_on(store.insert(j.clone())).unwrap(), Inserted::New);
+            assert_eq!(block_on(store.insert(j.clone(), "{}")).unwrap(), Inserted::New);
+            block_on(store.claim(&lease, 0)).unwrap().unwrap();
         }
-        // a stays queued; b, c and d end in that order, so b is forgotten.
+        // a stays running; b, c and d end in that order, so b is forgotten.
         for j in &jobs[1..] {
-            block_on(store.finish(&j.id, 0, ended())).unwrap();
+            assert!(block_on(store.finish(&j.id, "me", 0, ended())).unwrap());
         }
         let kept: Vec<JobId> =
             block_on(store.list(Page { offset: 0, limit: 10 })).unwrap().into_iter().map(|j| j.id).collect();
@@ -224,13 +350,5 @@ mod tests {
         // The forgotten job's idempotency key is free again.
         assert!(block_on(store.find_by_key("b")).unwrap().is_none());
         assert!(block_on(store.find_by_key("c")).unwrap().is_some());
-    }
-
-    #[test]
-    fn a_taken_key_returns_the_job_holding_it() {
-        let store = MemoryStore::new();
-        let first = job("k");
-        block_on(store.insert(first.clone())).unwrap();
-        assert_eq!(block_on(store.insert(job("k"))).unwrap(), Inserted::KeyTaken(Box::new(first)));
     }
 }

@@ -1,21 +1,28 @@
 //! Jobs: the queue, the worker pool, cancellation, progress and the job store.
 //!
-//! [`Jobs`] admits a scene against the [`Limits`], stores a [`JobRecord`] in a [`JobStore`] and
-//! queues it for a fixed pool of worker threads, which run it with
-//! [`run::execute`](crate::run::execute) off the async runtime. A panic fails only its job; a
-//! watchdog stops jobs past their wall time; progress comes from the run's lock-free
-//! [`Control`](crate::run::Control). Results are encoded once and kept in the store. The HTTP
-//! API talks to this module, never to the solver.
+//! [`Jobs`] admits a scene against the [`Limits`] and stores it as a queued [`JobRecord`] in a
+//! [`JobStore`], which is also the queue: a fixed pool of worker threads claims jobs from the
+//! store under a lease and runs them with [`run::execute`](crate::run::execute) off the async
+//! runtime. A panic fails only its job; a watchdog stops jobs past their wall time, renews the
+//! leases of running jobs, copies their progress (from the run's lock-free
+//! [`Control`](crate::run::Control)) to the store and picks up cancellations asked of other
+//! instances. Results are encoded once and kept in the store, compressed, until the retention
+//! time. The stores are [`MemoryStore`], [`SqliteStore`] (the default) and [`PostgresStore`]
+//! (several instances, one queue); [`StoreUrl`] picks one. The HTTP API talks to this module,
+//! never to the solver.
 
 mod encode;
 mod fingerprint;
 mod id;
 mod limits;
 mod memory;
+mod open;
 mod pool;
-mod queue;
+mod postgres;
 mod record;
 mod service;
+mod sql;
+mod sqlite;
 mod status;
 mod store;
 
@@ -24,7 +31,12 @@ pub use fingerprint::fingerprint;
 pub use id::JobId;
 pub use limits::Limits;
 pub use memory::MemoryStore;
+pub use open::StoreUrl;
+pub use postgres::PostgresStore;
 pub use record::{Idempotency, JobRecord, Plan, now_ms};
 pub use service::{BeforeRun, Cancelled, Jobs, JobsConfig, Submission, SubmitError, Submitted};
+pub use sqlite::SqliteStore;
 pub use status::{Failure, JobStatus};
-pub use store::{Inserted, JobStore, Outcome, Page, StoreError, StoredResult};
+pub use store::{
+    CancelRequest, Claimed, Inserted, JobStore, Lease, Outcome, Page, Renewed, StoreError, StoredResult,
+};

@@ -1,11 +1,14 @@
-//! The worker threads that run jobs, and the watchdog that enforces their wall time.
+//! The worker threads that run jobs, and the watchdog that enforces their wall time and holds
+//! their leases.
 //!
-//! Each worker is a plain thread that takes a job from the queue, runs it with
+//! Each worker is a plain thread that claims a job from the store, reads its scene, runs it with
 //! [`run::execute`](crate::run::execute) inside `catch_unwind` (so a panic fails that job alone),
 //! encodes the result and stores it. Workers talk to the async store by blocking on the
-//! runtime's handle, which is allowed because they are not runtime threads. The watchdog thread
-//! wakes a few times a second: it cancels, through their `Control`, jobs past their wall time
-//! (the worker then marks them failed), and copies the progress of running jobs to the store.
+//! runtime's handle, which is allowed because they are not runtime threads; the solver's step
+//! loop never touches the store. The watchdog thread wakes many times a second: it cancels,
+//! through their `Control`, jobs past their wall time (the worker then marks them failed), and
+//! every [`RENEW_PERIOD`] renews the leases of running jobs, copies their progress to the store
+//! and stops those cancelled through another instance or no longer this instance's.
 
 use std::any::Any;
 use std::panic::{AssertUnwindSafe, catch_unwind};
@@ -14,16 +17,18 @@ use std::sync::atomic::Ordering;
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use super::service::{Live, Shared, Ticket};
-use super::store::Outcome;
+use super::service::{IDLE_POLL, Live, Shared};
+use super::store::{Claimed, Outcome, Renewed};
 use super::{Failure, JobId, JobStatus, encode_result, now_ms};
 use crate::output::stats_json;
 use crate::run::{Status, execute};
+use crate::scene::{Compiled, Scene};
 
-/// How often the watchdog checks deadlines and publishes progress to the store.
+/// How often the watchdog checks deadlines.
 const WATCHDOG_PERIOD: Duration = Duration::from_millis(25);
-/// How often progress is copied to the store.
-const STORE_PROGRESS_PERIOD: Duration = Duration::from_millis(500);
+/// How often leases are renewed and progress copied to the store; a cancellation asked of
+/// another instance reaches the job within this.
+pub(super) const RENEW_PERIOD: Duration = Duration::from_millis(250);
 
 /// Starts `count` workers.
 pub(super) fn spawn_workers(shared: &Arc<Shared>, count: usize) -> Vec<JoinHandle<()>> {
@@ -33,8 +38,15 @@ pub(super) fn spawn_workers(shared: &Arc<Shared>, count: usize) -> Vec<JoinHandl
             std::thread::Builder::new()
                 .name(format!("drape-worker-{n}"))
                 .spawn(move || {
-                    while let Some((id, ticket)) = shared.queue.pop() {
-                        run_job(&shared, &id, ticket);
+                    while !shared.stopped.load(Ordering::Relaxed) {
+                        match shared.runtime.block_on(shared.store.claim(&shared.lease(), now_ms())) {
+                            Ok(Some(claimed)) => run_job(&shared, claimed),
+                            Ok(None) => shared.doorbell.wait(IDLE_POLL),
+                            Err(e) => {
+                                tracing::error!(error = %e, "cannot claim a job");
+                                shared.doorbell.wait(IDLE_POLL);
+                            }
+                        }
                     }
                 })
                 .expect("the operating system can start a worker thread")
@@ -42,29 +54,44 @@ pub(super) fn spawn_workers(shared: &Arc<Shared>, count: usize) -> Vec<JoinHandl
         .collect()
 }
 
-fn run_job(shared: &Shared, id: &JobId, ticket: Ticket) {
-    let Ticket { compiled, live } = ticket;
-    let started = Instant::now();
-    *live.started.lock().unwrap_or_else(std::sync::PoisonError::into_inner) = Some(started);
+/// Reads a claimed job's stored scene and admits it under this instance's limits.
+fn compile(shared: &Shared, scene: &str) -> Result<Compiled, String> {
+    let document = serde_json::from_str(scene).map_err(|e| format!("the stored scene is not JSON: {e}"))?;
+    let scene = Scene::from_value(document).map_err(|e| format!("the stored scene is not valid: {e}"))?;
+    let (compiled, _) = shared.config.limits.admit(&scene).map_err(|errors| {
+        let reasons: Vec<String> = errors.iter().map(ToString::to_string).collect();
+        format!("the scene exceeds this instance's limits: {}", reasons.join("; "))
+    })?;
+    Ok(compiled)
+}
+
+fn run_job(shared: &Shared, claimed: Claimed) {
+    let Claimed { record, scene } = claimed;
+    let id = &record.id;
+    let live = Arc::new(Live::new(record.plan));
     shared.running.fetch_add(1, Ordering::Relaxed);
-    if let Err(e) = shared.runtime.block_on(shared.store.mark_running(id, now_ms())) {
-        tracing::error!(job = %id, error = %e, "cannot mark the job running");
-    }
-    live.status.send_replace(JobStatus::Running);
-    tracing::info!(job = %id, particles = live.plan.particles, steps = live.plan.steps, "job started");
+    shared.started(id, &live);
+    tracing::info!(
+        job = %id,
+        attempt = record.attempts,
+        particles = live.plan.particles,
+        steps = live.plan.steps,
+        "job started"
+    );
 
     let ran = catch_unwind(AssertUnwindSafe(|| {
+        let compiled = compile(shared, &scene)?;
         if let Some(hook) = &shared.config.before_run {
             hook(&compiled);
         }
         let recording = execute(&compiled, &live.control);
         let encoded = encode_result(&recording, &compiled.output);
-        (recording.stats, encoded)
+        Ok((recording.stats, encoded))
     }));
 
     let steps_done = live.control.steps_done();
     let outcome = match ran {
-        Ok((stats, Ok(result))) => {
+        Ok(Ok((stats, Ok(result)))) => {
             let (status, message) = match stats.status {
                 Status::Succeeded => (JobStatus::Succeeded, None),
                 Status::Diverged => (JobStatus::Diverged, stats.diverged.as_ref().map(|d| d.reason.clone())),
@@ -82,9 +109,12 @@ fn run_job(shared: &Shared, id: &JobId, ticket: Ticket) {
             let result = failure.is_none().then_some(result);
             Outcome { status, steps_done, message, failure, stats: Some(stats_json(&stats)), result }
         }
-        Ok((_, Err(e))) => {
+        Ok(Ok((_, Err(e)))) => {
             failed(steps_done, Failure::Encoding, format!("the result could not be encoded: {e}"))
         }
+        // A scene that was valid when submitted: another instance with other limits, or a newer
+        // drape that reads it differently. Not the client's doing, so it counts as a defect.
+        Ok(Err(unreadable)) => failed(0, Failure::Panicked, unreadable),
         Err(panic) => failed(
             steps_done,
             Failure::Panicked,
@@ -92,7 +122,7 @@ fn run_job(shared: &Shared, id: &JobId, ticket: Ticket) {
         ),
     };
     shared.running.fetch_sub(1, Ordering::Relaxed);
-    let elapsed = started.elapsed();
+    let elapsed = live.started.elapsed();
     // Companion runs of the error estimate are counted when the run finished with them.
     let companions = if outcome.status == JobStatus::Succeeded { live.plan.companion_steps } else { 0 };
     let work = live.plan.particles.saturating_mul(steps_done.saturating_add(companions));
@@ -127,29 +157,41 @@ pub(super) fn spawn_watchdog(shared: &Arc<Shared>) -> JoinHandle<()> {
     std::thread::Builder::new()
         .name("drape-watchdog".into())
         .spawn(move || {
-            let mut last_store_update = Instant::now();
+            let mut last_renewal = Instant::now();
             while !shared.workers_gone.load(Ordering::Relaxed) {
                 std::thread::sleep(WATCHDOG_PERIOD);
                 let running: Vec<(JobId, Arc<Live>)> = shared.live_jobs();
                 for (_, live) in &running {
-                    let started = *live.started.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
-                    if started.is_some_and(|t| t.elapsed() > shared.config.wall_time) {
+                    if live.started.elapsed() > shared.config.wall_time {
                         live.timed_out.store(true, Ordering::Relaxed);
                         live.control.cancel();
                     }
                 }
-                if last_store_update.elapsed() >= STORE_PROGRESS_PERIOD {
-                    last_store_update = Instant::now();
-                    for (id, live) in
-                        running.iter().filter(|(_, live)| *live.status.borrow() == JobStatus::Running)
-                    {
-                        // A job may end between the check and the write; stores ignore progress
-                        // on an ended job.
-                        let _ =
-                            shared.runtime.block_on(shared.store.set_progress(id, live.control.steps_done()));
+                if last_renewal.elapsed() >= RENEW_PERIOD {
+                    last_renewal = Instant::now();
+                    for (id, live) in &running {
+                        renew(&shared, id, live);
                     }
                 }
             }
         })
         .expect("the operating system can start the watchdog thread")
+}
+
+/// Renews a running job's lease with its progress, and stops it if a client cancelled it through
+/// any instance or it is no longer this instance's.
+fn renew(shared: &Shared, id: &JobId, live: &Live) {
+    let lease = shared.lease();
+    match shared.runtime.block_on(shared.store.renew(id, &lease, live.control.steps_done())) {
+        Ok(Renewed::Held { cancel_requested: false }) => {}
+        Ok(Renewed::Held { cancel_requested: true }) => live.control.cancel(),
+        // A job that just ended here is no longer running in the store either.
+        Ok(Renewed::Lost) if live.status.borrow().is_final() => {}
+        Ok(Renewed::Lost) => {
+            tracing::warn!(job = %id, "the job's lease was lost; stopping it here");
+            live.lease_lost.store(true, Ordering::Relaxed);
+            live.control.cancel();
+        }
+        Err(e) => tracing::warn!(job = %id, error = %e, "cannot renew the job's lease"),
+    }
 }

@@ -29,6 +29,8 @@ pub struct JobRecord {
     pub stats: Option<serde_json::Value>,
     /// The `Idempotency-Key` it was submitted with, and the fingerprint of its body.
     pub idempotency: Option<Idempotency>,
+    /// How many times a worker started it: more than one if an instance died while running it.
+    pub attempts: u32,
 }
 
 /// The size of a run, worked out from the scene before it is queued.
@@ -79,6 +81,7 @@ impl JobRecord {
             failure: None,
             stats: None,
             idempotency,
+            attempts: 0,
         }
     }
 }

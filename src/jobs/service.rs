@@ -1,13 +1,14 @@
 //! [`Jobs`]: the one door to running simulations, used by the HTTP API.
 //!
-//! It admits a scene (limits, idempotency, a place in the queue), stores the job, hands it to the
-//! worker pool, and answers questions about it: its record with live progress, its result, a
-//! channel that changes when its status does. Jobs being queued or run in this process have a
-//! [`Live`] entry (their `Control` and a status channel); everything else comes from the store.
+//! It admits a scene (limits, idempotency, room in the queue) and stores it as a queued job; the
+//! store is the queue, and this process's workers (or another instance's, on a shared store)
+//! claim it from there. It answers questions about any job in the store: its record (with live
+//! progress if it runs here), its result, its end. Jobs running in this process have a [`Live`]
+//! entry (their `Control` and a status channel); everything else comes from the store.
 
 use std::collections::HashMap;
 use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
-use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
+use std::sync::{Arc, Condvar, Mutex, MutexGuard, PoisonError, Weak};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
@@ -15,8 +16,7 @@ use thiserror::Error;
 use tokio::sync::watch;
 
 use super::pool::{spawn_watchdog, spawn_workers};
-use super::queue::Queue;
-use super::store::{Inserted, JobStore, Outcome, Page, StoreError, StoredResult};
+use super::store::{CancelRequest, Inserted, JobStore, Lease, Outcome, Page, StoreError, StoredResult};
 use super::{Idempotency, JobId, JobRecord, JobStatus, Limits, Plan, now_ms};
 use crate::run::Control;
 use crate::scene::{Compiled, FieldError, Scene};
@@ -38,6 +38,11 @@ pub struct JobsConfig {
     pub limits: Limits,
     /// Run before each simulation (see [`BeforeRun`]).
     pub before_run: Option<BeforeRun>,
+    /// How long a claimed job stays this instance's without a renewal; a job whose instance
+    /// died runs again elsewhere after this.
+    pub lease: Duration,
+    /// How long results are kept after their job ends.
+    pub result_ttl: Duration,
 }
 
 impl Default for JobsConfig {
@@ -48,6 +53,8 @@ impl Default for JobsConfig {
             wall_time: Duration::from_secs(300),
             limits: Limits::default(),
             before_run: None,
+            lease: Duration::from_secs(30),
+            result_ttl: Duration::from_secs(24 * 3600),
         }
     }
 }
@@ -56,6 +63,8 @@ impl Default for JobsConfig {
 pub struct Submission {
     /// The validated scene.
     pub scene: Scene,
+    /// The document it was read from, stored so any instance can run the job.
+    pub document: serde_json::Value,
     /// [`fingerprint`](super::fingerprint) of the document it was read from.
     pub fingerprint: u64,
     /// The client's `Idempotency-Key`.
@@ -111,13 +120,20 @@ pub enum SubmitError {
 pub enum Cancelled {
     /// The job was waiting; it was taken out of the queue and will not run.
     Dropped(JobRecord),
-    /// The job is running; it stops at its next batch of steps.
+    /// The job is running; it stops at its next batch of steps (within a second if it runs on
+    /// another instance).
     Stopping(JobRecord),
     /// The job had already ended.
     AlreadyEnded(JobRecord),
 }
 
-/// The job system: queue, workers, store. Cheap to clone.
+/// How long an idle worker waits before looking in the store again, for jobs submitted to other
+/// instances or left by a dead one; a job submitted here wakes a worker at once.
+pub(super) const IDLE_POLL: Duration = Duration::from_millis(200);
+/// How often a waiter looks at a job that does not run here.
+const REMOTE_POLL: Duration = Duration::from_millis(100);
+
+/// The job system: workers over a store. Cheap to clone.
 #[derive(Clone)]
 pub struct Jobs {
     shared: Arc<Shared>,
@@ -125,42 +141,90 @@ pub struct Jobs {
 
 pub(super) struct Shared {
     pub(super) store: Arc<dyn JobStore>,
-    pub(super) queue: Queue<Ticket>,
     pub(super) config: JobsConfig,
     pub(super) runtime: tokio::runtime::Handle,
+    /// This instance's name in leases: unique per process.
+    pub(super) owner: String,
+    pub(super) doorbell: Doorbell,
     pub(super) running: AtomicUsize,
     pub(super) particle_steps: AtomicU64,
     pub(super) busy_nanos: AtomicU64,
     pub(super) stopped: AtomicBool,
     pub(super) workers_gone: AtomicBool,
+    /// Submissions between their room check and their insert.
+    admitting: AtomicUsize,
+    /// Bumped whenever a job starts or ends here, to wake waiters.
+    changes: watch::Sender<u64>,
     live: Mutex<HashMap<JobId, Arc<Live>>>,
     threads: Mutex<Vec<JoinHandle<()>>>,
 }
 
-/// A job handed to a worker.
-pub(super) struct Ticket {
-    pub(super) compiled: Compiled,
-    pub(super) live: Arc<Live>,
-}
-
-/// What this process knows of a job while it is queued or running.
+/// What this process knows of a job while it runs here.
 pub(super) struct Live {
     pub(super) control: Control,
     pub(super) plan: Plan,
     pub(super) status: watch::Sender<JobStatus>,
-    pub(super) started: Mutex<Option<Instant>>,
+    pub(super) started: Instant,
     pub(super) timed_out: AtomicBool,
+    /// The job is no longer this instance's (its lease lapsed and it was claimed again, or it was
+    /// cancelled elsewhere meanwhile): its end is not recorded here.
+    pub(super) lease_lost: AtomicBool,
+    /// Shutdown stopped it and it goes back to the queue, to run again after a restart.
+    pub(super) released: AtomicBool,
     shutting_down: AtomicBool,
 }
 
 impl Live {
+    pub(super) fn new(plan: Plan) -> Self {
+        Self {
+            control: Control::new(),
+            plan,
+            status: watch::Sender::new(JobStatus::Running),
+            started: Instant::now(),
+            timed_out: AtomicBool::new(false),
+            lease_lost: AtomicBool::new(false),
+            released: AtomicBool::new(false),
+            shutting_down: AtomicBool::new(false),
+        }
+    }
+
     /// Why a cancelled job was cancelled.
     pub(super) fn cancel_reason(&self) -> String {
-        if self.shutting_down.load(Ordering::Relaxed) {
-            "the server shut down before the job finished".into()
-        } else {
-            "cancelled by request".into()
+        if self.shutting_down.load(Ordering::Relaxed) { SHUT_DOWN.into() } else { CANCELLED.into() }
+    }
+}
+
+const SHUT_DOWN: &str = "the server shut down before the job finished";
+const CANCELLED: &str = "cancelled by request";
+
+/// Wakes idle workers when a job is submitted here. A missed ring costs one [`IDLE_POLL`].
+pub(super) struct Doorbell {
+    rings: Mutex<usize>,
+    bell: Condvar,
+}
+
+impl Doorbell {
+    fn new() -> Self {
+        Self { rings: Mutex::new(0), bell: Condvar::new() }
+    }
+
+    fn ring(&self) {
+        *self.rings.lock().unwrap_or_else(PoisonError::into_inner) += 1;
+        self.bell.notify_one();
+    }
+
+    fn ring_all(&self) {
+        *self.rings.lock().unwrap_or_else(PoisonError::into_inner) += 1;
+        self.bell.notify_all();
+    }
+
+    /// Waits for a ring, or `timeout`.
+    pub(super) fn wait(&self, timeout: Duration) {
+        let mut rings = self.rings.lock().unwrap_or_else(PoisonError::into_inner);
+        if *rings == 0 {
+            rings = self.bell.wait_timeout(rings, timeout).unwrap_or_else(PoisonError::into_inner).0;
         }
+        *rings = rings.saturating_sub(1);
     }
 }
 
@@ -173,46 +237,67 @@ impl Shared {
         self.live().iter().map(|(id, live)| (id.clone(), Arc::clone(live))).collect()
     }
 
-    /// Records the end of a job, tells its watchers, and forgets it.
-    pub(super) fn finish(&self, id: &JobId, live: &Live, outcome: Outcome) {
-        let status = outcome.status;
-        if let Err(e) = self.runtime.block_on(self.store.finish(id, now_ms(), outcome)) {
-            tracing::error!(job = %id, error = %e, "cannot store the end of the job");
-        }
-        live.status.send_replace(status);
-        self.live().remove(id);
+    /// A lease for this instance from now.
+    pub(super) fn lease(&self) -> Lease {
+        Lease { owner: self.owner.clone(), until_ms: now_ms() + self.config.lease.as_millis() as u64 }
     }
 
-    async fn finish_async(&self, id: &JobId, live: &Live, outcome: Outcome) -> Result<(), StoreError> {
+    /// Records that a job started here.
+    pub(super) fn started(&self, id: &JobId, live: &Arc<Live>) {
+        self.live().insert(id.clone(), Arc::clone(live));
+        self.changes.send_modify(|n| *n += 1);
+    }
+
+    /// Records the end of a job run here (unless it is no longer ours, or goes back to the
+    /// queue), tells its watchers, and forgets it.
+    pub(super) fn finish(&self, id: &JobId, live: &Live, outcome: Outcome) {
         let status = outcome.status;
-        let stored = self.store.finish(id, now_ms(), outcome).await;
-        live.status.send_replace(status);
+        if live.released.load(Ordering::Relaxed) {
+            if let Err(e) = self.runtime.block_on(self.store.release(id, &self.owner)) {
+                tracing::error!(job = %id, error = %e, "cannot put the job back in the queue");
+            }
+            tracing::info!(job = %id, "job put back in the queue for the next instance");
+        } else if live.lease_lost.load(Ordering::Relaxed) {
+            tracing::warn!(job = %id, "the job is no longer this instance's; its end here is not recorded");
+        } else {
+            match self.runtime.block_on(self.store.finish(id, &self.owner, now_ms(), outcome)) {
+                Ok(true) => {
+                    live.status.send_replace(status);
+                }
+                Ok(false) => tracing::warn!(job = %id, "lost the job's lease; its end here is not recorded"),
+                Err(e) => tracing::error!(job = %id, error = %e, "cannot store the end of the job"),
+            }
+        }
         self.live().remove(id);
-        stored
+        self.changes.send_modify(|n| *n += 1);
     }
 }
 
 impl Jobs {
-    /// Starts the workers and the watchdog. Call it inside a tokio runtime: workers use that
-    /// runtime to reach the store.
+    /// Starts the workers, the watchdog and the result sweep. Call it inside a tokio runtime:
+    /// workers use that runtime to reach the store.
     pub fn start(store: Arc<dyn JobStore>, config: JobsConfig) -> Self {
         let workers = config.workers.max(1);
         let shared = Arc::new(Shared {
             store,
-            queue: Queue::new(config.queue_capacity),
             config,
             runtime: tokio::runtime::Handle::current(),
+            owner: format!("{}-{}", std::process::id(), JobId::new()),
+            doorbell: Doorbell::new(),
             running: AtomicUsize::new(0),
             particle_steps: AtomicU64::new(0),
             busy_nanos: AtomicU64::new(0),
             stopped: AtomicBool::new(false),
             workers_gone: AtomicBool::new(false),
+            admitting: AtomicUsize::new(0),
+            changes: watch::Sender::new(0),
             live: Mutex::new(HashMap::new()),
             threads: Mutex::new(Vec::new()),
         });
         let mut threads = spawn_workers(&shared, workers);
         threads.push(spawn_watchdog(&shared));
         *shared.threads.lock().unwrap_or_else(PoisonError::into_inner) = threads;
+        tokio::spawn(sweep_results(Arc::downgrade(&shared)));
         Self { shared }
     }
 
@@ -226,9 +311,20 @@ impl Jobs {
         &self.shared.config
     }
 
+    /// This instance's name in the leases of the jobs it runs.
+    pub fn instance(&self) -> &str {
+        &self.shared.owner
+    }
+
+    /// Whether the job system has stopped and, its store being durable, leaves the jobs it is
+    /// not running to the next instance.
+    pub fn handing_over(&self) -> bool {
+        self.shared.stopped.load(Ordering::Relaxed) && self.shared.store.durable()
+    }
+
     /// Admits and queues a scene, or finds the earlier job with the same idempotency key.
     pub async fn submit(&self, submission: Submission) -> Result<Submitted, SubmitError> {
-        let Submission { scene, fingerprint, idempotency_key, max_work } = submission;
+        let Submission { scene, document, fingerprint, idempotency_key, max_work } = submission;
         let idempotency = idempotency_key.map(|key| Idempotency { key, fingerprint });
         if let Some(key) = &idempotency {
             if let Some(earlier) = self.shared.store.find_by_key(&key.key).await? {
@@ -236,19 +332,20 @@ impl Jobs {
             }
         }
 
-        // A full queue refuses before any work; the slot is freed if admission fails.
+        // A full queue refuses before any work.
         let shared = &self.shared;
-        let Some(slot) = shared.queue.reserve() else {
-            return Err(if shared.stopped.load(Ordering::Relaxed) {
-                SubmitError::ShuttingDown
-            } else {
-                SubmitError::QueueFull
-            });
-        };
+        if shared.stopped.load(Ordering::Relaxed) {
+            return Err(SubmitError::ShuttingDown);
+        }
+        let admitting = Admitting::enter(&shared.admitting);
+        let queued = shared.store.count_queued().await?;
+        if queued.saturating_add(admitting.others as u64) >= shared.config.queue_capacity as u64 {
+            return Err(SubmitError::QueueFull);
+        }
         // Admission counts particles and springs, then compiles (which allocates them), so it
         // runs off the async threads.
         let limits = *self.limits();
-        let (compiled, plan) = tokio::task::spawn_blocking(move || limits.admit(&scene))
+        let plan = tokio::task::spawn_blocking(move || limits.admit(&scene).map(|(_, plan)| plan))
             .await
             .map_err(|e| StoreError::Backend(format!("admission task failed: {e}")))?
             .map_err(SubmitError::OverLimit)?;
@@ -260,34 +357,17 @@ impl Jobs {
 
         let id = JobId::new();
         let record = JobRecord::queued(id.clone(), plan, idempotency.clone());
-        let live = Arc::new(Live {
-            control: Control::new(),
-            plan,
-            status: watch::Sender::new(JobStatus::Queued),
-            started: Mutex::new(None),
-            timed_out: AtomicBool::new(false),
-            shutting_down: AtomicBool::new(false),
-        });
-        shared.live().insert(id.clone(), Arc::clone(&live));
-        match shared.store.insert(record.clone()).await {
-            Ok(Inserted::New) => {}
-            Ok(Inserted::KeyTaken(earlier)) => {
-                shared.live().remove(&id);
+        match shared.store.insert(record.clone(), &document.to_string()).await? {
+            Inserted::New => {}
+            Inserted::KeyTaken(earlier) => {
                 return repeat_of(
                     *earlier,
                     idempotency.as_ref().expect("only a keyed job can find its key taken"),
                 );
             }
-            Err(e) => {
-                shared.live().remove(&id);
-                return Err(e.into());
-            }
         }
-        if slot.push(id.clone(), Ticket { compiled, live: Arc::clone(&live) }).is_err() {
-            live.shutting_down.store(true, Ordering::Relaxed);
-            shared.finish_async(&id, &live, cancelled_unrun(&live)).await?;
-            return Err(SubmitError::ShuttingDown);
-        }
+        drop(admitting);
+        shared.doorbell.ring();
         tracing::info!(job = %id, particles = plan.particles, steps = plan.steps, "job queued");
         Ok(Submitted { job: record, repeated: false })
     }
@@ -323,36 +403,49 @@ impl Jobs {
         self.shared.store.result(id).await
     }
 
-    /// A channel holding the job's status while it is queued or running here; `None` otherwise.
+    /// A channel holding the job's status while it runs here; `None` otherwise.
     pub fn watch(&self, id: &JobId) -> Option<watch::Receiver<JobStatus>> {
         self.shared.live().get(id).map(|live| live.status.subscribe())
     }
 
-    /// Waits until the job has ended and returns its record.
+    /// Waits until the job has ended and returns its record. A job that runs here wakes the
+    /// waiter as it ends; one that runs elsewhere is looked at every [`REMOTE_POLL`]. Returns the
+    /// job unfinished if this instance hands over on shutdown.
     pub async fn wait(&self, id: &JobId) -> Result<Option<JobRecord>, StoreError> {
-        if let Some(mut status) = self.watch(id) {
-            // An error means the job was forgotten, which happens only after it ended.
-            let _ = status.wait_for(|s| s.is_final()).await;
+        let mut changes = self.shared.changes.subscribe();
+        loop {
+            if let Some(mut status) = self.watch(id) {
+                // An error means the job was forgotten, which happens only after it ended here.
+                let _ = status.wait_for(|s| s.is_final()).await;
+            }
+            let job = self.shared.store.get(id).await?;
+            if job.as_ref().is_none_or(|job| job.status.is_final()) || self.handing_over() {
+                return Ok(job);
+            }
+            tokio::select! {
+                _ = changes.changed() => {}
+                () = tokio::time::sleep(REMOTE_POLL) => {}
+            }
         }
-        self.shared.store.get(id).await
     }
 
-    /// Cancels a job: a queued one is dropped, a running one stops within one batch of steps.
+    /// Cancels a job: a queued one is dropped, a running one stops within one batch of steps if
+    /// it runs here, and within a lease renewal if it runs on another instance.
     pub async fn cancel(&self, id: &JobId) -> Result<Option<Cancelled>, StoreError> {
         let shared = &self.shared;
-        if let Some(ticket) = shared.queue.remove(id) {
-            let live = ticket.live;
-            shared.finish_async(id, &live, cancelled_unrun(&live)).await?;
-            return Ok(shared.store.get(id).await?.map(Cancelled::Dropped));
+        if let Some(live) = shared.live().get(id) {
+            live.control.cancel();
         }
-        let live = shared.live().get(id).cloned();
-        let Some(record) = self.get(id).await? else { return Ok(None) };
-        Ok(Some(match live {
-            Some(live) if !record.status.is_final() => {
-                live.control.cancel();
-                Cancelled::Stopping(record)
+        let Some(request) = shared.store.request_cancel(id, now_ms(), CANCELLED).await? else {
+            return Ok(None);
+        };
+        Ok(Some(match request {
+            CancelRequest::Cancelled(job) => {
+                shared.changes.send_modify(|n| *n += 1);
+                Cancelled::Dropped(job)
             }
-            _ => Cancelled::AlreadyEnded(record),
+            CancelRequest::Requested(job) => Cancelled::Stopping(self.get(id).await?.unwrap_or(job)),
+            CancelRequest::AlreadyEnded(job) => Cancelled::AlreadyEnded(job),
         }))
     }
 
@@ -361,12 +454,12 @@ impl Jobs {
         self.shared.store.count_by_status().await
     }
 
-    /// Jobs waiting for a worker.
-    pub fn queue_len(&self) -> usize {
-        self.shared.queue.len()
+    /// Jobs waiting for a worker, in the whole store.
+    pub async fn queue_len(&self) -> Result<u64, StoreError> {
+        self.shared.store.count_queued().await
     }
 
-    /// Jobs being run.
+    /// Jobs being run by this instance.
     pub fn running(&self) -> usize {
         self.shared.running.load(Ordering::Relaxed)
     }
@@ -377,24 +470,36 @@ impl Jobs {
         (s.particle_steps.load(Ordering::Relaxed), Duration::from_nanos(s.busy_nanos.load(Ordering::Relaxed)))
     }
 
-    /// Stops taking jobs, cancels the queued ones, lets running ones finish for up to `grace`,
-    /// cancels those still running, and waits for the workers to exit.
+    /// Stops taking jobs and lets running ones finish for up to `grace`. Then, on a durable
+    /// store, jobs still running go back to the queue and queued ones stay queued, for the next
+    /// instance; on the memory store, which ends with the process, both are cancelled. Waits for
+    /// the workers to exit.
     pub async fn shutdown(&self, grace: Duration) {
         let shared = &self.shared;
         shared.stopped.store(true, Ordering::Relaxed);
-        for (id, ticket) in shared.queue.close() {
-            ticket.live.shutting_down.store(true, Ordering::Relaxed);
-            if let Err(e) = shared.finish_async(&id, &ticket.live, cancelled_unrun(&ticket.live)).await {
-                tracing::error!(job = %id, error = %e, "cannot store the cancellation");
+        shared.doorbell.ring_all();
+        let durable = shared.store.durable();
+        if !durable {
+            match shared.store.cancel_queued(now_ms(), SHUT_DOWN).await {
+                Ok(ids) => {
+                    ids.iter().for_each(|id| tracing::info!(job = %id, "queued job cancelled by shutdown"))
+                }
+                Err(e) => tracing::error!(error = %e, "cannot cancel the queued jobs"),
             }
+            shared.changes.send_modify(|n| *n += 1);
         }
         let deadline = Instant::now() + grace;
         while shared.running.load(Ordering::Relaxed) > 0 && Instant::now() < deadline {
             tokio::time::sleep(Duration::from_millis(10)).await;
         }
         for (id, live) in shared.live_jobs() {
-            tracing::warn!(job = %id, "cancelling a job still running at the end of the grace period");
             live.shutting_down.store(true, Ordering::Relaxed);
+            if durable {
+                tracing::warn!(job = %id, "stopping a job still running at the end of the grace period; it stays queued");
+                live.released.store(true, Ordering::Relaxed);
+            } else {
+                tracing::warn!(job = %id, "cancelling a job still running at the end of the grace period");
+            }
             live.control.cancel();
         }
         let threads = std::mem::take(&mut *shared.threads.lock().unwrap_or_else(PoisonError::into_inner));
@@ -413,20 +518,48 @@ impl Jobs {
     }
 }
 
+/// Counts a submission between its room check and its insert, so submissions arriving together
+/// cannot overfill the queue.
+struct Admitting<'a> {
+    counter: &'a AtomicUsize,
+    others: usize,
+}
+
+impl<'a> Admitting<'a> {
+    fn enter(counter: &'a AtomicUsize) -> Self {
+        Self { counter, others: counter.fetch_add(1, Ordering::AcqRel) }
+    }
+}
+
+impl Drop for Admitting<'_> {
+    fn drop(&mut self) {
+        self.counter.fetch_sub(1, Ordering::AcqRel);
+    }
+}
+
+/// Drops results older than the retention time, a few times per retention time (at least once a
+/// minute), until the job system is gone.
+async fn sweep_results(shared: Weak<Shared>) {
+    let Some(ttl) = shared.upgrade().map(|s| s.config.result_ttl) else { return };
+    let period = (ttl / 4).clamp(Duration::from_millis(100), Duration::from_secs(60));
+    loop {
+        tokio::time::sleep(period).await;
+        let Some(shared) = shared.upgrade() else { return };
+        if shared.stopped.load(Ordering::Relaxed) {
+            return;
+        }
+        let before = now_ms().saturating_sub(ttl.as_millis() as u64);
+        match shared.store.drop_results(before).await {
+            Ok(0) => {}
+            Ok(n) => tracing::info!(results = n, "dropped results past their retention time"),
+            Err(e) => tracing::warn!(error = %e, "cannot drop old results"),
+        }
+    }
+}
+
 fn repeat_of(earlier: JobRecord, key: &Idempotency) -> Result<Submitted, SubmitError> {
     match &earlier.idempotency {
         Some(held) if held.fingerprint == key.fingerprint => Ok(Submitted { job: earlier, repeated: true }),
         _ => Err(SubmitError::KeyReused { key: key.key.clone(), job: earlier.id }),
-    }
-}
-
-fn cancelled_unrun(live: &Live) -> Outcome {
-    Outcome {
-        status: JobStatus::Cancelled,
-        steps_done: 0,
-        message: Some(live.cancel_reason()),
-        failure: None,
-        stats: None,
-        result: None,
     }
 }

@@ -56,6 +56,9 @@ pub enum Failure {
 }
 
 impl Failure {
+    /// Every kind of failure.
+    pub const ALL: [Self; 3] = [Self::WallTime, Self::Panicked, Self::Encoding];
+
     /// The name the contract uses.
     pub fn name(self) -> &'static str {
         match self {

@@ -1,9 +1,16 @@
-//! The job store: where jobs, their status and progress, and their results live.
+//! The job store: where jobs, their status and progress, and their results live, and the queue
+//! that workers claim jobs from.
 //!
 //! A trait with async methods, so a database backend (which does its I/O on the async runtime)
 //! fits as well as the in-memory one. The queue and the workers hold a `dyn JobStore`; worker
 //! threads, which are not runtime threads, drive its futures with the runtime's handle. Results
 //! are stored once, already encoded, and served as they are.
+//!
+//! Workers take jobs with [`JobStore::claim`], which hands a queued job, or a running one whose
+//! lease lapsed, to one owner (a drape instance) until its lease expires; the owner renews the
+//! lease while it runs the job, learns there whether a cancellation was asked for, and records
+//! the end only while it still holds the job. So several instances can share one store, and a
+//! job whose instance died runs again elsewhere.
 
 use async_trait::async_trait;
 use bytes::Bytes;
@@ -55,6 +62,47 @@ pub struct Page {
     pub limit: u64,
 }
 
+/// A job handed to a worker by [`JobStore::claim`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct Claimed {
+    /// The job, now `running`, its `attempts` counting this one.
+    pub record: JobRecord,
+    /// The scene document it was submitted with, as JSON text.
+    pub scene: String,
+}
+
+/// Who holds a claimed job, and until when.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Lease {
+    /// The instance that holds it.
+    pub owner: String,
+    /// When the hold lapses unless renewed, in milliseconds since the Unix epoch.
+    pub until_ms: u64,
+}
+
+/// What [`JobStore::renew`] found.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Renewed {
+    /// The lease was extended; `cancel_requested` says whether a client asked to cancel.
+    Held {
+        /// A client asked to cancel the job.
+        cancel_requested: bool,
+    },
+    /// The job is no longer this owner's: its lease lapsed and it was claimed again, or it ended.
+    Lost,
+}
+
+/// What [`JobStore::request_cancel`] did.
+#[derive(Clone, Debug, PartialEq)]
+pub enum CancelRequest {
+    /// The job was not running (queued, or its lease had lapsed): it is now cancelled.
+    Cancelled(JobRecord),
+    /// The job is running under a live lease: its owner will stop it at its next renewal.
+    Requested(JobRecord),
+    /// The job had already ended.
+    AlreadyEnded(JobRecord),
+}
+
 /// A store that could not do what was asked.
 #[derive(Debug, Error)]
 pub enum StoreError {
@@ -69,8 +117,11 @@ pub enum StoreError {
 /// Where jobs live. Every method is atomic with respect to the others.
 #[async_trait]
 pub trait JobStore: Send + Sync + 'static {
-    /// Adds a queued job, unless its idempotency key is already held by another job.
-    async fn insert(&self, job: JobRecord) -> Result<Inserted, StoreError>;
+    /// Whether jobs outlive this process (a database), so a shutdown leaves queued jobs queued.
+    fn durable(&self) -> bool;
+
+    /// Adds a queued job with its scene document, unless its idempotency key is already held.
+    async fn insert(&self, job: JobRecord, scene: &str) -> Result<Inserted, StoreError>;
 
     /// The job with this id.
     async fn get(&self, id: &JobId) -> Result<Option<JobRecord>, StoreError>;
@@ -84,14 +135,42 @@ pub trait JobStore: Send + Sync + 'static {
     /// How many jobs there are in each status.
     async fn count_by_status(&self) -> Result<Vec<(JobStatus, u64)>, StoreError>;
 
-    /// Marks a queued job as started.
-    async fn mark_running(&self, id: &JobId, started_ms: u64) -> Result<(), StoreError>;
+    /// How many jobs wait for a worker.
+    async fn count_queued(&self) -> Result<u64, StoreError>;
 
-    /// Records the steps a running job has taken; ignored once the job has ended.
-    async fn set_progress(&self, id: &JobId, steps_done: u64) -> Result<(), StoreError>;
+    /// Takes the oldest job that is queued, or running under a lease that lapsed before `now_ms`,
+    /// marks it running under `lease` and counts the attempt; `None` if there is none.
+    async fn claim(&self, lease: &Lease, now_ms: u64) -> Result<Option<Claimed>, StoreError>;
 
-    /// Records how a job ended, with its result if it has one.
-    async fn finish(&self, id: &JobId, finished_ms: u64, outcome: Outcome) -> Result<(), StoreError>;
+    /// Extends the lease of a job `lease.owner` holds and records its progress.
+    async fn renew(&self, id: &JobId, lease: &Lease, steps_done: u64) -> Result<Renewed, StoreError>;
+
+    /// Records how a job ended, with its result, if `owner` still holds it; returns whether it did.
+    async fn finish(
+        &self,
+        id: &JobId,
+        owner: &str,
+        finished_ms: u64,
+        outcome: Outcome,
+    ) -> Result<bool, StoreError>;
+
+    /// Puts a job `owner` holds back in the queue, to run again from the start.
+    async fn release(&self, id: &JobId, owner: &str) -> Result<(), StoreError>;
+
+    /// Cancels a job: at once if it is not running under a live lease at `now_ms`, otherwise by
+    /// flagging it for its owner. `None` if there is no such job.
+    async fn request_cancel(
+        &self,
+        id: &JobId,
+        now_ms: u64,
+        message: &str,
+    ) -> Result<Option<CancelRequest>, StoreError>;
+
+    /// Cancels every queued job; returns their ids.
+    async fn cancel_queued(&self, now_ms: u64, message: &str) -> Result<Vec<JobId>, StoreError>;
+
+    /// Drops the results of jobs that ended before `before_ms`; returns how many.
+    async fn drop_results(&self, before_ms: u64) -> Result<u64, StoreError>;
 
     /// The result of an ended job.
     async fn result(&self, id: &JobId) -> Result<Option<StoredResult>, StoreError>;

@@ -1,0 +1,538 @@
+//! The job store over SQL, shared by the SQLite and PostgreSQL backends.
+//!
+//! Both keep the same two tables (`jobs` and `results`, see `migrations/`) and run the same
+//! statements, written once here with `$n` placeholders (SQLite reads them as `?n`). They differ
+//! only in how a worker claims a job: PostgreSQL locks the chosen row with `FOR UPDATE SKIP
+//! LOCKED`, so instances claiming at once never wait for or take the same job; SQLite has one
+//! writer at a time, so the claiming `UPDATE` alone is atomic. [`sql_store!`] writes the
+//! [`JobStore`](super::JobStore) implementation for a backend's pool type.
+//!
+//! Results are deflate-compressed on the way in and inflated on the way out.
+
+use std::io::{Read, Write};
+
+use bytes::Bytes;
+use flate2::Compression;
+use flate2::read::DeflateDecoder;
+use flate2::write::DeflateEncoder;
+
+use super::store::StoreError;
+use super::{Failure, Idempotency, JobId, JobRecord, JobStatus, Plan};
+
+/// The columns of a job as [`JobRow`] reads them.
+pub(super) const COLUMNS: &str = "id, status, created_ms, started_ms, finished_ms, particles, springs, steps, \
+     companion_steps, dt, duration, steps_done, message, failure, stats, idem_key, idem_fingerprint, attempts";
+
+/// The statements of a backend, with its placeholders.
+pub(super) struct Statements {
+    pub insert: String,
+    pub get: String,
+    pub find_by_key: String,
+    pub list: String,
+    pub count_by_status: String,
+    pub count_queued: String,
+    pub claim: String,
+    pub renew: String,
+    pub finish: String,
+    pub store_result: String,
+    pub release: String,
+    pub cancel_now: String,
+    pub flag_cancel: String,
+    pub cancel_queued: String,
+    pub drop_results: String,
+    pub result: String,
+}
+
+/// Which backend the statements are for.
+#[derive(Clone, Copy, PartialEq, Eq)]
+pub(super) enum Dialect {
+    Sqlite,
+    Postgres,
+}
+
+impl Statements {
+    pub(super) fn new(dialect: Dialect) -> Self {
+        let lock = match dialect {
+            Dialect::Postgres => "FOR UPDATE SKIP LOCKED",
+            Dialect::Sqlite => "",
+        };
+        let claimable = "status IN ('queued', 'running') AND (status = 'queued' OR lease_until_ms < $3)";
+        let placeholders = |sql: String| match dialect {
+            Dialect::Postgres => sql,
+            Dialect::Sqlite => sql.replace('$', "?"),
+        };
+        let ended = "scene = NULL, lease_owner = NULL, lease_until_ms = NULL";
+        Self {
+            insert: placeholders(
+                "INSERT INTO jobs (id, status, created_ms, particles, springs, steps, companion_steps, dt, \
+                 duration, idem_key, idem_fingerprint, scene) \
+                 VALUES ($1, 'queued', $2, $3, $4, $5, $11, $6, $7, $8, $9, $10) \
+                 ON CONFLICT (idem_key) DO NOTHING"
+                    .into(),
+            ),
+            get: placeholders(format!("SELECT {COLUMNS} FROM jobs WHERE id = $1")),
+            find_by_key: placeholders(format!("SELECT {COLUMNS} FROM jobs WHERE idem_key = $1")),
+            list: placeholders(format!("SELECT {COLUMNS} FROM jobs ORDER BY seq DESC LIMIT $1 OFFSET $2")),
+            count_by_status: "SELECT status, COUNT(*) FROM jobs GROUP BY status".into(),
+            count_queued: "SELECT COUNT(*) FROM jobs WHERE status = 'queued'".into(),
+            claim: placeholders(format!(
+                "UPDATE jobs SET status = 'running', lease_owner = $1, lease_until_ms = $2, started_ms = $3, \
+                 steps_done = 0, attempts = attempts + 1 \
+                 WHERE id = (SELECT id FROM jobs WHERE {claimable} ORDER BY seq LIMIT 1 {lock}) \
+                 AND {claimable} RETURNING {COLUMNS}, scene"
+            )),
+            renew: placeholders(
+                "UPDATE jobs SET lease_until_ms = $1, steps_done = $2 \
+                 WHERE id = $3 AND status = 'running' AND lease_owner = $4 RETURNING cancel_requested"
+                    .into(),
+            ),
+            finish: placeholders(format!(
+                "UPDATE jobs SET status = $1, finished_ms = $2, steps_done = $3, message = $4, stats = $5, \
+                 failure = $8, {ended} WHERE id = $6 AND status = 'running' AND lease_owner = $7"
+            )),
+            store_result: placeholders(
+                "INSERT INTO results (job_id, media_type, body, finished_ms) VALUES ($1, $2, $3, $4)".into(),
+            ),
+            release: placeholders(
+                "UPDATE jobs SET status = 'queued', steps_done = 0, lease_owner = NULL, lease_until_ms = NULL \
+                 WHERE id = $1 AND status = 'running' AND lease_owner = $2"
+                    .into(),
+            ),
+            cancel_now: placeholders(format!(
+                "UPDATE jobs SET status = 'cancelled', finished_ms = $1, message = $2, {ended} \
+                 WHERE id = $3 AND status IN ('queued', 'running') \
+                 AND (status = 'queued' OR lease_until_ms < $1) RETURNING {COLUMNS}"
+            )),
+            flag_cancel: placeholders(format!(
+                "UPDATE jobs SET cancel_requested = TRUE WHERE id = $1 AND status = 'running' RETURNING {COLUMNS}"
+            )),
+            cancel_queued: placeholders(format!(
+                "UPDATE jobs SET status = 'cancelled', finished_ms = $1, message = $2, {ended} \
+                 WHERE status = 'queued' RETURNING id"
+            )),
+            drop_results: placeholders("DELETE FROM results WHERE finished_ms < $1".into()),
+            result: placeholders("SELECT media_type, body FROM results WHERE job_id = $1".into()),
+        }
+    }
+}
+
+/// A job as a row of `jobs`.
+#[derive(sqlx::FromRow)]
+pub(super) struct JobRow {
+    id: String,
+    status: String,
+    created_ms: i64,
+    started_ms: Option<i64>,
+    finished_ms: Option<i64>,
+    particles: i64,
+    springs: i64,
+    steps: i64,
+    companion_steps: i64,
+    dt: f64,
+    duration: f64,
+    steps_done: i64,
+    message: Option<String>,
+    failure: Option<String>,
+    stats: Option<String>,
+    idem_key: Option<String>,
+    idem_fingerprint: Option<i64>,
+    attempts: i64,
+}
+
+/// A claimed job's row, with its scene.
+#[derive(sqlx::FromRow)]
+pub(super) struct ClaimRow {
+    #[sqlx(flatten)]
+    pub job: JobRow,
+    pub scene: Option<String>,
+}
+
+impl JobRow {
+    pub(super) fn into_record(self) -> Result<JobRecord, StoreError> {
+        let id = JobId::parse(&self.id).ok_or_else(|| corrupt(format!("a job id `{}`", self.id)))?;
+        let status = JobStatus::ALL
+            .into_iter()
+            .find(|s| s.name() == self.status)
+            .ok_or_else(|| corrupt(format!("a status `{}`", self.status)))?;
+        let stats = self
+            .stats
+            .map(|text| serde_json::from_str(&text))
+            .transpose()
+            .map_err(|e| corrupt(format!("stats that are not JSON ({e})")))?;
+        let failure = self
+            .failure
+            .map(|name| {
+                Failure::ALL
+                    .into_iter()
+                    .find(|f| f.name() == name)
+                    .ok_or_else(|| corrupt(format!("a failure `{name}`")))
+            })
+            .transpose()?;
+        let idempotency = match (self.idem_key, self.idem_fingerprint) {
+            (Some(key), Some(fingerprint)) => Some(Idempotency { key, fingerprint: fingerprint as u64 }),
+            _ => None,
+        };
+        Ok(JobRecord {
+            id,
+            status,
+            created_ms: self.created_ms as u64,
+            started_ms: self.started_ms.map(|t| t as u64),
+            finished_ms: self.finished_ms.map(|t| t as u64),
+            plan: Plan {
+                particles: self.particles as u64,
+                springs: self.springs as u64,
+                steps: self.steps as u64,
+                companion_steps: self.companion_steps as u64,
+                dt: self.dt,
+                duration: self.duration,
+            },
+            steps_done: self.steps_done as u64,
+            message: self.message,
+            failure,
+            stats,
+            idempotency,
+            attempts: u32::try_from(self.attempts).unwrap_or(u32::MAX),
+        })
+    }
+}
+
+fn corrupt(what: String) -> StoreError {
+    StoreError::Backend(format!("the store holds {what}"))
+}
+
+/// A database error as a store error.
+pub(super) fn backend(e: sqlx::Error) -> StoreError {
+    StoreError::Backend(e.to_string())
+}
+
+/// A `u64` as the signed 64-bit integer databases store; fingerprints use all 64 bits.
+pub(super) fn int(value: u64) -> i64 {
+    value as i64
+}
+
+/// Deflates a result for storage.
+pub(super) fn compress(bytes: &[u8]) -> Result<Vec<u8>, StoreError> {
+    let mut encoder = DeflateEncoder::new(Vec::with_capacity(bytes.len() / 4), Compression::fast());
+    encoder.write_all(bytes).and_then(|()| encoder.finish()).map_err(|e| StoreError::Backend(e.to_string()))
+}
+
+/// Inflates a stored result.
+pub(super) fn decompress(bytes: &[u8]) -> Result<Bytes, StoreError> {
+    let mut out = Vec::with_capacity(bytes.len() * 4);
+    DeflateDecoder::new(bytes)
+        .read_to_end(&mut out)
+        .map_err(|e| corrupt(format!("a damaged result ({e})")))?;
+    Ok(Bytes::from(out))
+}
+
+/// The media types a result can have, as the `'static` strings [`StoredResult`] holds.
+///
+/// [`StoredResult`]: super::StoredResult
+pub(super) fn media_type(text: &str) -> Result<&'static str, StoreError> {
+    crate::output::Format::ALL
+        .into_iter()
+        .map(crate::output::Format::media_type)
+        .find(|known| *known == text)
+        .ok_or_else(|| corrupt(format!("a result of unknown media type `{text}`")))
+}
+
+/// Writes `impl JobStore` for a struct with fields `pool` (a sqlx pool) and `sql` ([`Statements`]).
+macro_rules! sql_store {
+    ($store:ty) => {
+        #[async_trait::async_trait]
+        impl $crate::jobs::JobStore for $store {
+            fn durable(&self) -> bool {
+                true
+            }
+
+            async fn insert(
+                &self,
+                job: $crate::jobs::JobRecord,
+                scene: &str,
+            ) -> Result<$crate::jobs::Inserted, $crate::jobs::StoreError> {
+                use $crate::jobs::sql::{backend, int};
+                let plan = &job.plan;
+                let inserted = sqlx::query(&self.sql.insert)
+                    .bind(job.id.as_str())
+                    .bind(int(job.created_ms))
+                    .bind(int(plan.particles))
+                    .bind(int(plan.springs))
+                    .bind(int(plan.steps))
+                    .bind(plan.dt)
+                    .bind(plan.duration)
+                    .bind(job.idempotency.as_ref().map(|i| i.key.clone()))
+                    .bind(job.idempotency.as_ref().map(|i| int(i.fingerprint)))
+                    .bind(scene)
+                    .bind(int(plan.companion_steps))
+                    .execute(&self.pool)
+                    .await
+                    .map_err(backend)?;
+                if inserted.rows_affected() == 1 {
+                    return Ok($crate::jobs::Inserted::New);
+                }
+                let key = job.idempotency.as_ref().map(|i| i.key.as_str()).unwrap_or_default();
+                match self.find_by_key(key).await? {
+                    Some(holder) => Ok($crate::jobs::Inserted::KeyTaken(Box::new(holder))),
+                    None => {
+                        Err($crate::jobs::StoreError::Backend(format!("job {} was not inserted", job.id)))
+                    }
+                }
+            }
+
+            async fn get(
+                &self,
+                id: &$crate::jobs::JobId,
+            ) -> Result<Option<$crate::jobs::JobRecord>, $crate::jobs::StoreError> {
+                sqlx::query_as::<_, $crate::jobs::sql::JobRow>(&self.sql.get)
+                    .bind(id.as_str())
+                    .fetch_optional(&self.pool)
+                    .await
+                    .map_err($crate::jobs::sql::backend)?
+                    .map($crate::jobs::sql::JobRow::into_record)
+                    .transpose()
+            }
+
+            async fn find_by_key(
+                &self,
+                key: &str,
+            ) -> Result<Option<$crate::jobs::JobRecord>, $crate::jobs::StoreError> {
+                sqlx::query_as::<_, $crate::jobs::sql::JobRow>(&self.sql.find_by_key)
+                    .bind(key)
+                    .fetch_optional(&self.pool)
+                    .await
+                    .map_err($crate::jobs::sql::backend)?
+                    .map($crate::jobs::sql::JobRow::into_record)
+                    .transpose()
+            }
+
+            async fn list(
+                &self,
+                page: $crate::jobs::Page,
+            ) -> Result<Vec<$crate::jobs::JobRecord>, $crate::jobs::StoreError> {
+                use $crate::jobs::sql::int;
+                sqlx::query_as::<_, $crate::jobs::sql::JobRow>(&self.sql.list)
+                    .bind(int(page.limit.min(i64::MAX as u64)))
+                    .bind(int(page.offset.min(i64::MAX as u64)))
+                    .fetch_all(&self.pool)
+                    .await
+                    .map_err($crate::jobs::sql::backend)?
+                    .into_iter()
+                    .map($crate::jobs::sql::JobRow::into_record)
+                    .collect()
+            }
+
+            async fn count_by_status(
+                &self,
+            ) -> Result<Vec<($crate::jobs::JobStatus, u64)>, $crate::jobs::StoreError> {
+                let rows: Vec<(String, i64)> = sqlx::query_as(&self.sql.count_by_status)
+                    .fetch_all(&self.pool)
+                    .await
+                    .map_err($crate::jobs::sql::backend)?;
+                Ok($crate::jobs::JobStatus::ALL
+                    .iter()
+                    .map(|&status| {
+                        let n = rows.iter().find(|(name, _)| name == status.name()).map_or(0, |(_, n)| *n);
+                        (status, n as u64)
+                    })
+                    .collect())
+            }
+
+            async fn count_queued(&self) -> Result<u64, $crate::jobs::StoreError> {
+                let (n,): (i64,) = sqlx::query_as(&self.sql.count_queued)
+                    .fetch_one(&self.pool)
+                    .await
+                    .map_err($crate::jobs::sql::backend)?;
+                Ok(n as u64)
+            }
+
+            async fn claim(
+                &self,
+                lease: &$crate::jobs::Lease,
+                now_ms: u64,
+            ) -> Result<Option<$crate::jobs::Claimed>, $crate::jobs::StoreError> {
+                use $crate::jobs::sql::{backend, int};
+                let row = sqlx::query_as::<_, $crate::jobs::sql::ClaimRow>(&self.sql.claim)
+                    .bind(&lease.owner)
+                    .bind(int(lease.until_ms))
+                    .bind(int(now_ms))
+                    .fetch_optional(&self.pool)
+                    .await
+                    .map_err(backend)?;
+                let Some(row) = row else { return Ok(None) };
+                let record = row.job.into_record()?;
+                let scene = row.scene.ok_or_else(|| {
+                    $crate::jobs::StoreError::Backend(format!("job {} has no scene", record.id))
+                })?;
+                Ok(Some($crate::jobs::Claimed { record, scene }))
+            }
+
+            async fn renew(
+                &self,
+                id: &$crate::jobs::JobId,
+                lease: &$crate::jobs::Lease,
+                steps_done: u64,
+            ) -> Result<$crate::jobs::Renewed, $crate::jobs::StoreError> {
+                use $crate::jobs::sql::{backend, int};
+                let row: Option<(bool,)> = sqlx::query_as(&self.sql.renew)
+                    .bind(int(lease.until_ms))
+                    .bind(int(steps_done))
+                    .bind(id.as_str())
+                    .bind(&lease.owner)
+                    .fetch_optional(&self.pool)
+                    .await
+                    .map_err(backend)?;
+                Ok(match row {
+                    Some((cancel_requested,)) => $crate::jobs::Renewed::Held { cancel_requested },
+                    None => $crate::jobs::Renewed::Lost,
+                })
+            }
+
+            async fn finish(
+                &self,
+                id: &$crate::jobs::JobId,
+                owner: &str,
+                finished_ms: u64,
+                outcome: $crate::jobs::Outcome,
+            ) -> Result<bool, $crate::jobs::StoreError> {
+                use $crate::jobs::sql::{backend, compress, int};
+                let body = match &outcome.result {
+                    Some(result) => {
+                        let bytes = result.bytes.clone();
+                        Some(
+                            tokio::task::spawn_blocking(move || compress(&bytes))
+                                .await
+                                .map_err(|e| $crate::jobs::StoreError::Backend(e.to_string()))??,
+                        )
+                    }
+                    None => None,
+                };
+                let mut tx = self.pool.begin().await.map_err(backend)?;
+                let ended = sqlx::query(&self.sql.finish)
+                    .bind(outcome.status.name())
+                    .bind(int(finished_ms))
+                    .bind(int(outcome.steps_done))
+                    .bind(outcome.message)
+                    .bind(outcome.stats.map(|s| s.to_string()))
+                    .bind(id.as_str())
+                    .bind(owner)
+                    .bind(outcome.failure.map(|f| f.name()))
+                    .execute(&mut *tx)
+                    .await
+                    .map_err(backend)?;
+                if ended.rows_affected() != 1 {
+                    return Ok(false);
+                }
+                if let (Some(result), Some(body)) = (outcome.result, body) {
+                    sqlx::query(&self.sql.store_result)
+                        .bind(id.as_str())
+                        .bind(result.media_type)
+                        .bind(body)
+                        .bind(int(finished_ms))
+                        .execute(&mut *tx)
+                        .await
+                        .map_err(backend)?;
+                }
+                tx.commit().await.map_err(backend)?;
+                Ok(true)
+            }
+
+            async fn release(
+                &self,
+                id: &$crate::jobs::JobId,
+                owner: &str,
+            ) -> Result<(), $crate::jobs::StoreError> {
+                sqlx::query(&self.sql.release)
+                    .bind(id.as_str())
+                    .bind(owner)
+                    .execute(&self.pool)
+                    .await
+                    .map_err($crate::jobs::sql::backend)?;
+                Ok(())
+            }
+
+            async fn request_cancel(
+                &self,
+                id: &$crate::jobs::JobId,
+                now_ms: u64,
+                message: &str,
+            ) -> Result<Option<$crate::jobs::CancelRequest>, $crate::jobs::StoreError> {
+                use $crate::jobs::CancelRequest;
+                use $crate::jobs::sql::{JobRow, backend, int};
+                // Each statement is atomic; a job that changes between them (a claim, a release)
+                // is looked at again.
+                for _ in 0..3 {
+                    let cancelled = sqlx::query_as::<_, JobRow>(&self.sql.cancel_now)
+                        .bind(int(now_ms))
+                        .bind(message)
+                        .bind(id.as_str())
+                        .fetch_optional(&self.pool)
+                        .await
+                        .map_err(backend)?;
+                    if let Some(row) = cancelled {
+                        return Ok(Some(CancelRequest::Cancelled(row.into_record()?)));
+                    }
+                    let flagged = sqlx::query_as::<_, JobRow>(&self.sql.flag_cancel)
+                        .bind(id.as_str())
+                        .fetch_optional(&self.pool)
+                        .await
+                        .map_err(backend)?;
+                    if let Some(row) = flagged {
+                        return Ok(Some(CancelRequest::Requested(row.into_record()?)));
+                    }
+                    match self.get(id).await? {
+                        None => return Ok(None),
+                        Some(job) if job.status.is_final() => {
+                            return Ok(Some(CancelRequest::AlreadyEnded(job)));
+                        }
+                        Some(_) => {}
+                    }
+                }
+                Err($crate::jobs::StoreError::Backend(format!(
+                    "job {id} kept changing while being cancelled"
+                )))
+            }
+
+            async fn cancel_queued(
+                &self,
+                now_ms: u64,
+                message: &str,
+            ) -> Result<Vec<$crate::jobs::JobId>, $crate::jobs::StoreError> {
+                let ids: Vec<(String,)> = sqlx::query_as(&self.sql.cancel_queued)
+                    .bind($crate::jobs::sql::int(now_ms))
+                    .bind(message)
+                    .fetch_all(&self.pool)
+                    .await
+                    .map_err($crate::jobs::sql::backend)?;
+                Ok(ids.into_iter().filter_map(|(id,)| $crate::jobs::JobId::parse(&id)).collect())
+            }
+
+            async fn drop_results(&self, before_ms: u64) -> Result<u64, $crate::jobs::StoreError> {
+                let dropped = sqlx::query(&self.sql.drop_results)
+                    .bind($crate::jobs::sql::int(before_ms))
+                    .execute(&self.pool)
+                    .await
+                    .map_err($crate::jobs::sql::backend)?;
+                Ok(dropped.rows_affected())
+            }
+
+            async fn result(
+                &self,
+                id: &$crate::jobs::JobId,
+            ) -> Result<Option<$crate::jobs::StoredResult>, $crate::jobs::StoreError> {
+                use $crate::jobs::sql::{backend, decompress, media_type};
+                let row: Option<(String, Vec<u8>)> = sqlx::query_as(&self.sql.result)
+                    .bind(id.as_str())
+                    .fetch_optional(&self.pool)
+                    .await
+                    .map_err(backend)?;
+                let Some((media, body)) = row else { return Ok(None) };
+                let bytes = tokio::task::spawn_blocking(move || decompress(&body))
+                    .await
+                    .map_err(|e| $crate::jobs::StoreError::Backend(e.to_string()))??;
+                Ok(Some($crate::jobs::StoredResult { media_type: media_type(&media)?, bytes }))
+            }
+        }
+    };
+}
+
+pub(super) use sql_store;

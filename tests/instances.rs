@@ -1,0 +1,118 @@
+//! Two `drape serve` processes on one PostgreSQL database share one queue: every job runs
+//! exactly once while both live, either answers for any job, a cancellation sent to one stops a
+//! job running on the other, and when one is killed in the middle of a job the other runs it.
+
+#![cfg(unix)]
+
+mod pg;
+mod serve;
+
+use std::collections::HashMap;
+
+use serve::{Server, ended, job, result, submit, under_way, wait_for};
+
+/// About 20 ms of work: long enough that both instances get some of the 40 jobs.
+const SMALL: &str = r#"{"duration": 1, "dt": 0.001, "bodies": [{"type": "chain", "count": 500}],
+                       "output": {"frames": "final"}}"#;
+/// A few seconds of work.
+const MEDIUM: &str = r#"{"duration": 15, "dt": 0.001, "bodies": [{"type": "chain", "count": 4000}],
+                        "output": {"frames": "final"}}"#;
+/// Far longer than the test: it ends only by cancellation.
+const LONG: &str = r#"{"duration": 1000, "dt": 0.001, "bodies": [{"type": "chain", "count": 1000}],
+                      "output": {"frames": "none"}}"#;
+
+fn counts(starts: impl IntoIterator<Item = String>) -> HashMap<String, usize> {
+    let mut counts = HashMap::new();
+    for id in starts {
+        *counts.entry(id).or_insert(0) += 1;
+    }
+    counts
+}
+
+/// Whether the job was started by `one` rather than `two`, once either log shows it.
+async fn runs_on(id: &str, one: &Server, two: &Server) -> bool {
+    tokio::time::timeout(serve::PATIENCE, async {
+        loop {
+            match (one.starts().iter().any(|s| s == id), two.starts().iter().any(|s| s == id)) {
+                (true, false) => return true,
+                (false, true) => return false,
+                (true, true) => panic!("job {id} was started by both instances"),
+                (false, false) => tokio::time::sleep(std::time::Duration::from_millis(10)).await,
+            }
+        }
+    })
+    .await
+    .expect("an instance logs the start of the job")
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn two_instances_share_one_postgres_queue() {
+    let Some(database) = pg::TestDatabase::create().await else { return };
+    let dir = tempfile::tempdir().unwrap();
+    // A one-second lease, so the survivor takes over a dead instance's job quickly.
+    let args = ["--workers", "2", "--lease", "1", "--queue-capacity", "100"];
+    let one = Server::start(dir.path(), &database.url, &args);
+    let two = Server::start(dir.path(), &database.url, &args);
+    let client = reqwest::Client::new();
+
+    // 40 jobs, submitted through both.
+    let mut ids = Vec::new();
+    for n in 0..40 {
+        let base = if n % 2 == 0 { &one.base } else { &two.base };
+        ids.push(submit(&client, base, SMALL).await);
+    }
+    for (n, id) in ids.iter().enumerate() {
+        // Each asked of the instance it was not submitted to.
+        let base = if n % 2 == 0 { &two.base } else { &one.base };
+        let job = wait_for(&client, base, id, ended).await;
+        assert_eq!((job["status"].as_str(), job["attempts"].as_u64()), (Some("succeeded"), Some(1)), "{job}");
+        assert_eq!(result(&client, base, id).await["stats"]["steps"], 1000);
+    }
+    let (ran_one, ran_two) = (counts(one.starts()), counts(two.starts()));
+    for id in &ids {
+        let runs = ran_one.get(id).unwrap_or(&0) + ran_two.get(id).unwrap_or(&0);
+        assert_eq!(runs, 1, "job {id} ran {runs} times");
+    }
+    eprintln!("instance one ran {} jobs, instance two {}", ran_one.len(), ran_two.len());
+
+    // A cancellation asked of either instance reaches the job wherever it runs.
+    let long = submit(&client, &one.base, LONG).await;
+    wait_for(&client, &one.base, &long, under_way).await;
+    let (runner, other) = if runs_on(&long, &one, &two).await { (&one, &two) } else { (&two, &one) };
+    // The other instance follows the job's events through the store.
+    let events = client.get(format!("{}/jobs/{long}/events", other.base)).send().await.unwrap();
+    let response = client.delete(format!("{}/jobs/{long}", other.base)).send().await.unwrap();
+    assert_eq!(response.status(), 202);
+    let cancelled = wait_for(&client, &runner.base, &long, ended).await;
+    let stream =
+        tokio::time::timeout(serve::PATIENCE, events.text()).await.expect("the stream ends").unwrap();
+    let end = stream
+        .split("\n\n")
+        .find_map(|block| block.strip_prefix("event: end\ndata: "))
+        .unwrap_or_else(|| panic!("no end event in {stream:?}"));
+    assert_eq!(serde_json::from_str::<serde_json::Value>(end).unwrap()["status"], "cancelled");
+    assert_eq!(
+        (cancelled["status"].as_str(), cancelled["message"].as_str()),
+        (Some("cancelled"), Some("cancelled by request"))
+    );
+
+    // Kill the instance running a job; the other finishes it.
+    let medium = submit(&client, &one.base, MEDIUM).await;
+    wait_for(&client, &one.base, &medium, under_way).await;
+    let (doomed, survivor) = if runs_on(&medium, &one, &two).await { (one, two) } else { (two, one) };
+    doomed.kill();
+    let finished = wait_for(&client, &survivor.base, &medium, ended).await;
+    assert_eq!(
+        (finished["status"].as_str(), finished["attempts"].as_u64()),
+        (Some("succeeded"), Some(2)),
+        "{finished}"
+    );
+    assert_eq!(finished["progress"]["step"], 15_000);
+    assert_eq!(counts(survivor.starts()).get(&medium), Some(&1), "the survivor ran it once, from the start");
+    assert_eq!(
+        job(&client, &survivor.base, &ids[0]).await["status"],
+        "succeeded",
+        "the survivor answers for all"
+    );
+    drop(survivor);
+}

@@ -1,0 +1,421 @@
+//! One suite of job-store tests, run against every backend: memory, SQLite (a file in a temp
+//! directory) and PostgreSQL (a database made for each test and dropped after it).
+//!
+//! Claims take the time as an argument, so lease expiry is tested without sleeping.
+
+mod pg;
+
+use std::collections::HashMap;
+use std::sync::Arc;
+
+use bytes::Bytes;
+use drape::jobs::{
+    CancelRequest, Claimed, Failure, Idempotency, Inserted, JobId, JobRecord, JobStatus, JobStore, Lease,
+    MemoryStore, Outcome, Page, Plan, PostgresStore, Renewed, SqliteStore, StoredResult,
+};
+use serde_json::json;
+
+/// A store and what must live as long as it.
+struct Harness {
+    store: Arc<dyn JobStore>,
+    _dir: Option<tempfile::TempDir>,
+    _database: Option<pg::TestDatabase>,
+}
+
+async fn memory() -> Option<Harness> {
+    Some(Harness { store: Arc::new(MemoryStore::new()), _dir: None, _database: None })
+}
+
+async fn sqlite() -> Option<Harness> {
+    let dir = tempfile::tempdir().unwrap();
+    let store = SqliteStore::open(&dir.path().join("drape.db")).await.unwrap();
+    Some(Harness { store: Arc::new(store), _dir: Some(dir), _database: None })
+}
+
+async fn postgres() -> Option<Harness> {
+    let database = pg::TestDatabase::create().await?;
+    let store = PostgresStore::open(&database.url, 8).await.unwrap();
+    Some(Harness { store: Arc::new(store), _dir: None, _database: Some(database) })
+}
+
+const T0: u64 = 1_700_000_000_000;
+const LEASE_MS: u64 = 30_000;
+
+fn plan() -> Plan {
+    Plan { particles: 3, springs: 2, steps: 10, companion_steps: 5, dt: 0.01, duration: 0.1 }
+}
+
+fn job(key: Option<(&str, u64)>) -> JobRecord {
+    let idempotency = key.map(|(key, fingerprint)| Idempotency { key: key.into(), fingerprint });
+    JobRecord { created_ms: T0, ..JobRecord::queued(JobId::new(), plan(), idempotency) }
+}
+
+fn scene_of(job: &JobRecord) -> String {
+    json!({"duration": 0.1, "tag": job.id.as_str()}).to_string()
+}
+
+async fn add(store: &dyn JobStore) -> JobRecord {
+    let job = job(None);
+    assert_eq!(store.insert(job.clone(), &scene_of(&job)).await.unwrap(), Inserted::New);
+    job
+}
+
+fn lease(owner: &str, now: u64) -> Lease {
+    Lease { owner: owner.into(), until_ms: now + LEASE_MS }
+}
+
+fn succeeded(steps: u64, bytes: &[u8]) -> Outcome {
+    Outcome {
+        status: JobStatus::Succeeded,
+        steps_done: steps,
+        message: None,
+        failure: None,
+        stats: Some(json!({"steps": steps, "status": "succeeded"})),
+        result: Some(StoredResult { media_type: "application/json", bytes: Bytes::copy_from_slice(bytes) }),
+    }
+}
+
+async fn claim(store: &dyn JobStore, owner: &str, now: u64) -> Option<Claimed> {
+    store.claim(&lease(owner, now), now).await.unwrap()
+}
+
+async fn jobs_round_trip_and_list_newest_first(store: Arc<dyn JobStore>) {
+    let store = &*store;
+    let keyed = job(Some(("key-1", u64::MAX - 7)));
+    assert_eq!(store.insert(keyed.clone(), "{}").await.unwrap(), Inserted::New);
+    let (b, c) = (add(store).await, add(store).await);
+    assert_eq!(
+        store.get(&keyed.id).await.unwrap(),
+        Some(keyed.clone()),
+        "every field, the fingerprint's 64 bits too"
+    );
+    assert_eq!(store.get(&JobId::new()).await.unwrap(), None);
+    let ids = |jobs: Vec<JobRecord>| jobs.into_iter().map(|j| j.id).collect::<Vec<_>>();
+    assert_eq!(
+        ids(store.list(Page { offset: 0, limit: 10 }).await.unwrap()),
+        [c.id.clone(), b.id.clone(), keyed.id]
+    );
+    assert_eq!(ids(store.list(Page { offset: 1, limit: 1 }).await.unwrap()), [b.id]);
+    assert_eq!(store.count_queued().await.unwrap(), 3);
+    claim(store, "a", T0).await.unwrap();
+    let counts: HashMap<JobStatus, u64> = store.count_by_status().await.unwrap().into_iter().collect();
+    assert_eq!(counts.len(), JobStatus::ALL.len());
+    assert_eq!(
+        (counts[&JobStatus::Queued], counts[&JobStatus::Running], counts[&JobStatus::Succeeded]),
+        (2, 1, 0)
+    );
+    assert_eq!(store.count_queued().await.unwrap(), 2);
+}
+
+async fn an_idempotency_key_is_held_by_one_job(store: Arc<dyn JobStore>) {
+    let first = job(Some(("sweep-17/run-3", 42)));
+    assert_eq!(store.insert(first.clone(), "{}").await.unwrap(), Inserted::New);
+    let second = job(Some(("sweep-17/run-3", 43)));
+    assert_eq!(
+        store.insert(second.clone(), "{}").await.unwrap(),
+        Inserted::KeyTaken(Box::new(first.clone()))
+    );
+    assert_eq!(store.get(&second.id).await.unwrap(), None, "nothing was added");
+    assert_eq!(store.find_by_key("sweep-17/run-3").await.unwrap(), Some(first));
+    assert_eq!(store.find_by_key("other").await.unwrap(), None);
+    assert_eq!(store.count_queued().await.unwrap(), 1);
+}
+
+async fn claims_take_the_oldest_job_with_its_scene_and_count_attempts(store: Arc<dyn JobStore>) {
+    let store = &*store;
+    let (a, b) = (add(store).await, add(store).await);
+    let first = claim(store, "one", T0 + 5).await.unwrap();
+    assert_eq!(first.record.id, a.id);
+    assert_eq!(first.scene, scene_of(&a));
+    assert_eq!(
+        (first.record.status, first.record.attempts, first.record.started_ms),
+        (JobStatus::Running, 1, Some(T0 + 5))
+    );
+    assert_eq!(store.get(&a.id).await.unwrap().unwrap(), first.record);
+    assert_eq!(claim(store, "two", T0 + 6).await.unwrap().record.id, b.id);
+    assert!(claim(store, "three", T0 + 7).await.is_none(), "both jobs are held under live leases");
+}
+
+async fn a_lapsed_lease_hands_the_job_to_another_instance(store: Arc<dyn JobStore>) {
+    let store = &*store;
+    let a = add(store).await;
+    claim(store, "dead", T0).await.unwrap();
+    assert!(claim(store, "alive", T0 + LEASE_MS).await.is_none(), "the lease holds until it lapses");
+    let again = claim(store, "alive", T0 + LEASE_MS + 1).await.unwrap();
+    assert_eq!((again.record.id.clone(), again.record.attempts), (a.id.clone(), 2));
+    assert_eq!(again.scene, scene_of(&a));
+    // The first owner, back from a pause, finds the job gone and cannot record an end.
+    assert_eq!(store.renew(&a.id, &lease("dead", T0 + LEASE_MS + 2), 7).await.unwrap(), Renewed::Lost);
+    assert!(!store.finish(&a.id, "dead", T0 + LEASE_MS + 3, succeeded(10, b"dead")).await.unwrap());
+    assert!(store.finish(&a.id, "alive", T0 + LEASE_MS + 4, succeeded(10, b"alive")).await.unwrap());
+    assert_eq!(store.result(&a.id).await.unwrap().unwrap().bytes, &b"alive"[..]);
+    let ended = store.get(&a.id).await.unwrap().unwrap();
+    assert_eq!(
+        (ended.status, ended.attempts, ended.finished_ms),
+        (JobStatus::Succeeded, 2, Some(T0 + LEASE_MS + 4))
+    );
+    assert!(claim(store, "alive", T0 + 10 * LEASE_MS).await.is_none(), "an ended job is never claimed");
+}
+
+async fn renewals_record_progress_and_carry_cancellation(store: Arc<dyn JobStore>) {
+    let store = &*store;
+    let a = add(store).await;
+    claim(store, "one", T0).await.unwrap();
+    assert_eq!(
+        store.renew(&a.id, &lease("one", T0 + 100), 4).await.unwrap(),
+        Renewed::Held { cancel_requested: false }
+    );
+    assert_eq!(store.get(&a.id).await.unwrap().unwrap().steps_done, 4);
+    assert_eq!(store.renew(&a.id, &lease("other", T0 + 100), 5).await.unwrap(), Renewed::Lost);
+    // The renewal moved the lease: past the first lease's end the job is still held.
+    assert!(claim(store, "two", T0 + LEASE_MS + 50).await.is_none());
+
+    match store.request_cancel(&a.id, T0 + 200, "cancelled by request").await.unwrap() {
+        Some(CancelRequest::Requested(job)) => assert_eq!(job.status, JobStatus::Running),
+        other => panic!("a running job is flagged, not ended: {other:?}"),
+    }
+    assert_eq!(
+        store.renew(&a.id, &lease("one", T0 + 300), 6).await.unwrap(),
+        Renewed::Held { cancel_requested: true }
+    );
+    let outcome = Outcome {
+        status: JobStatus::Cancelled,
+        steps_done: 6,
+        message: Some("cancelled by request".into()),
+        failure: None,
+        stats: None,
+        result: None,
+    };
+    assert!(store.finish(&a.id, "one", T0 + 400, outcome).await.unwrap());
+    let ended = store.get(&a.id).await.unwrap().unwrap();
+    assert_eq!(
+        (ended.status, ended.steps_done, ended.message.as_deref()),
+        (JobStatus::Cancelled, 6, Some("cancelled by request"))
+    );
+    assert!(matches!(
+        store.request_cancel(&a.id, T0 + 500, "x").await.unwrap(),
+        Some(CancelRequest::AlreadyEnded(_))
+    ));
+    assert_eq!(
+        store.renew(&a.id, &lease("one", T0 + 600), 7).await.unwrap(),
+        Renewed::Lost,
+        "an ended job is no one's"
+    );
+}
+
+async fn cancelling_a_queued_or_abandoned_job_ends_it_at_once(store: Arc<dyn JobStore>) {
+    let store = &*store;
+    let (queued, abandoned) = (add(store).await, add(store).await);
+    claim(store, "a", T0).await.unwrap();
+    claim(store, "b", T0).await.unwrap();
+    // `queued` went first; put it back as shutdown does, then cancel it.
+    store.release(&queued.id, "a").await.unwrap();
+    assert_eq!(store.get(&queued.id).await.unwrap().unwrap().status, JobStatus::Queued);
+    match store.request_cancel(&queued.id, T0 + 1, "cancelled by request").await.unwrap() {
+        Some(CancelRequest::Cancelled(job)) => {
+            assert_eq!(
+                (job.status, job.finished_ms, job.message.as_deref()),
+                (JobStatus::Cancelled, Some(T0 + 1), Some("cancelled by request"))
+            );
+        }
+        other => panic!("{other:?}"),
+    }
+    // `abandoned`'s instance died: its lease lapsed, so nobody is left to read a flag.
+    match store.request_cancel(&abandoned.id, T0 + LEASE_MS + 1, "cancelled by request").await.unwrap() {
+        Some(CancelRequest::Cancelled(job)) => assert_eq!(job.status, JobStatus::Cancelled),
+        other => panic!("{other:?}"),
+    }
+    assert!(claim(store, "c", T0 + 10 * LEASE_MS).await.is_none());
+    assert!(store.request_cancel(&JobId::new(), T0, "x").await.unwrap().is_none());
+}
+
+async fn a_released_job_runs_again_from_the_start(store: Arc<dyn JobStore>) {
+    let store = &*store;
+    let a = add(store).await;
+    claim(store, "a", T0).await.unwrap();
+    store.renew(&a.id, &lease("a", T0 + 10), 5).await.unwrap();
+    store.release(&a.id, "someone else").await.unwrap();
+    assert_eq!(
+        store.get(&a.id).await.unwrap().unwrap().status,
+        JobStatus::Running,
+        "only the owner releases"
+    );
+    store.release(&a.id, "a").await.unwrap();
+    let released = store.get(&a.id).await.unwrap().unwrap();
+    assert_eq!((released.status, released.steps_done), (JobStatus::Queued, 0));
+    let again = claim(store, "b", T0 + 20).await.unwrap();
+    assert_eq!((again.record.id, again.record.attempts), (a.id, 2));
+}
+
+async fn results_are_kept_whole_until_their_retention_ends(store: Arc<dyn JobStore>) {
+    let store = &*store;
+    let (old, new) = (add(store).await, add(store).await);
+    // A result of the size and repetitiveness of real output: numbers in JSON.
+    let body: String = (0..20_000).map(|i| format!("{:.6},", (i as f64 * 0.37).sin())).collect();
+    for (job, at) in [(&old, T0 + 1_000), (&new, T0 + 5_000)] {
+        claim(store, "a", T0).await.unwrap();
+        assert!(store.finish(&job.id, "a", at, succeeded(10, body.as_bytes())).await.unwrap());
+    }
+    let result = store.result(&old.id).await.unwrap().unwrap();
+    assert_eq!((result.media_type, result.bytes.as_ref()), ("application/json", body.as_bytes()));
+    let ended = store.get(&old.id).await.unwrap().unwrap();
+    assert_eq!(ended.stats, Some(json!({"steps": 10, "status": "succeeded"})));
+    assert_eq!(store.drop_results(T0 + 1_000).await.unwrap(), 0, "a result ended exactly at the cut is kept");
+    assert_eq!(store.drop_results(T0 + 2_000).await.unwrap(), 1);
+    assert_eq!(store.result(&old.id).await.unwrap(), None);
+    assert_eq!(
+        store.get(&old.id).await.unwrap().unwrap().status,
+        JobStatus::Succeeded,
+        "the job itself stays"
+    );
+    assert_eq!(store.result(&new.id).await.unwrap().unwrap().bytes.as_ref(), body.as_bytes());
+
+    // A failure keeps its kind and has no result; a binary result keeps its media type.
+    let (failed, binary) = (add(store).await, add(store).await);
+    claim(store, "a", T0).await.unwrap();
+    claim(store, "a", T0).await.unwrap();
+    let outcome = Outcome {
+        status: JobStatus::Failed,
+        steps_done: 3,
+        message: Some("the job exceeded the wall-time limit".into()),
+        failure: Some(Failure::WallTime),
+        stats: None,
+        result: None,
+    };
+    assert!(store.finish(&failed.id, "a", T0 + 6_000, outcome).await.unwrap());
+    let ended = store.get(&failed.id).await.unwrap().unwrap();
+    assert_eq!(
+        (ended.status, ended.failure, ended.steps_done),
+        (JobStatus::Failed, Some(Failure::WallTime), 3)
+    );
+    assert_eq!(store.result(&failed.id).await.unwrap(), None);
+    let glb: Vec<u8> = (0..=255u8).cycle().take(5000).collect();
+    let outcome = Outcome {
+        result: Some(StoredResult { media_type: "model/gltf-binary", bytes: Bytes::from(glb.clone()) }),
+        ..succeeded(10, b"")
+    };
+    assert!(store.finish(&binary.id, "a", T0 + 6_000, outcome).await.unwrap());
+    let result = store.result(&binary.id).await.unwrap().unwrap();
+    assert_eq!((result.media_type, result.bytes.as_ref()), ("model/gltf-binary", glb.as_slice()));
+}
+
+async fn shutdown_cancels_only_queued_jobs(store: Arc<dyn JobStore>) {
+    let store = &*store;
+    let (running, q1, q2) = (add(store).await, add(store).await, add(store).await);
+    claim(store, "a", T0).await.unwrap();
+    let mut cancelled =
+        store.cancel_queued(T0 + 1, "the server shut down before the job finished").await.unwrap();
+    cancelled.sort();
+    let mut expected = vec![q1.id.clone(), q2.id];
+    expected.sort();
+    assert_eq!(cancelled, expected);
+    assert_eq!(store.get(&running.id).await.unwrap().unwrap().status, JobStatus::Running);
+    assert_eq!(
+        store.get(&q1.id).await.unwrap().unwrap().message.as_deref(),
+        Some("the server shut down before the job finished")
+    );
+}
+
+/// Claimers racing for 60 jobs: each job is handed out exactly once.
+async fn racing_claimers_never_share_a_job(store: Arc<dyn JobStore>) {
+    let mut ids = Vec::new();
+    for _ in 0..60 {
+        ids.push(add(&*store).await.id);
+    }
+    let claimers: Vec<_> = (0..6)
+        .map(|n| {
+            let store = Arc::clone(&store);
+            tokio::spawn(async move {
+                let mut got = Vec::new();
+                while let Some(claimed) = claim(&*store, &format!("instance-{n}"), T0).await {
+                    got.push(claimed.record.id);
+                }
+                got
+            })
+        })
+        .collect();
+    let mut claimed = Vec::new();
+    for claimer in claimers {
+        claimed.extend(claimer.await.unwrap());
+    }
+    claimed.sort();
+    ids.sort();
+    assert_eq!(claimed, ids);
+}
+
+macro_rules! suite {
+    ($backend:ident: $($test:ident),* $(,)?) => {
+        mod $backend {
+            $(
+                #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+                async fn $test() {
+                    let Some(harness) = super::$backend().await else { return };
+                    super::$test(std::sync::Arc::clone(&harness.store)).await;
+                }
+            )*
+        }
+    };
+}
+
+macro_rules! every_backend {
+    ($($test:ident),* $(,)?) => {
+        suite!(memory: $($test),*);
+        suite!(sqlite: $($test),*);
+        suite!(postgres: $($test),*);
+    };
+}
+
+every_backend!(
+    jobs_round_trip_and_list_newest_first,
+    an_idempotency_key_is_held_by_one_job,
+    claims_take_the_oldest_job_with_its_scene_and_count_attempts,
+    a_lapsed_lease_hands_the_job_to_another_instance,
+    renewals_record_progress_and_carry_cancellation,
+    cancelling_a_queued_or_abandoned_job_ends_it_at_once,
+    a_released_job_runs_again_from_the_start,
+    results_are_kept_whole_until_their_retention_ends,
+    shutdown_cancels_only_queued_jobs,
+    racing_claimers_never_share_a_job,
+);
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_sqlite_store_keeps_its_jobs_across_a_reopen_and_reruns_the_one_that_was_running() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("drape.db");
+    let (done, running, queued);
+    {
+        let store = SqliteStore::open(&path).await.unwrap();
+        done = add(&store).await;
+        running = add(&store).await;
+        queued = add(&store).await;
+        claim(&store, "old", T0).await.unwrap();
+        assert!(store.finish(&done.id, "old", T0 + 1, succeeded(10, b"[1,2,3]")).await.unwrap());
+        claim(&store, "old", T0 + 2).await.unwrap();
+    }
+    let store = SqliteStore::open(&path).await.unwrap();
+    assert_eq!(store.result(&done.id).await.unwrap().unwrap().bytes.as_ref(), b"[1,2,3]");
+    // The process that held `running` is gone: it is claimed again at once, not after its lease.
+    let again = claim(&store, "new", T0 + 3).await.unwrap();
+    assert_eq!((again.record.id, again.record.attempts), (running.id, 2));
+    let next = claim(&store, "new", T0 + 4).await.unwrap();
+    assert_eq!((next.record.id, next.record.attempts), (queued.id, 1));
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn postgres_instances_share_one_queue_and_one_key_space() {
+    let Some(database) = pg::TestDatabase::create().await else { return };
+    let (one, two) = (
+        PostgresStore::open(&database.url, 4).await.unwrap(),
+        PostgresStore::open(&database.url, 4).await.unwrap(),
+    );
+    let keyed = job(Some(("shared", 1)));
+    assert_eq!(one.insert(keyed.clone(), "{}").await.unwrap(), Inserted::New);
+    assert_eq!(
+        two.insert(job(Some(("shared", 1))), "{}").await.unwrap(),
+        Inserted::KeyTaken(Box::new(keyed.clone()))
+    );
+    let claimed = claim(&two, "two", T0).await.unwrap();
+    assert_eq!(claimed.record.id, keyed.id);
+    assert!(claim(&one, "one", T0).await.is_none());
+    assert_eq!(one.get(&keyed.id).await.unwrap().unwrap().status, JobStatus::Running);
+}
