@@ -36,6 +36,9 @@ pub struct Config {
     /// Most values in one result: frames × (particles × 3 per vector field + springs for strain).
     #[arg(long, env = "DRAPE_MAX_OUTPUT_VALUES", default_value_t = Limits::default().max_output_values)]
     pub max_output_values: u64,
+    /// Most variants one sweep may make (POST /sweeps answers 422 above).
+    #[arg(long, env = "DRAPE_MAX_SWEEP_VARIANTS", default_value_t = ApiConfig::default().max_sweep_variants)]
+    pub max_sweep_variants: u64,
     /// Longest a job may run, in seconds; it is then stopped and marked failed.
     #[arg(long, env = "DRAPE_JOB_WALL_TIME", default_value = "300", value_parser = seconds)]
     pub job_wall_time: Duration,
@@ -85,6 +88,7 @@ impl Config {
             request_timeout: self.request_timeout,
             max_concurrent_requests: self.max_concurrent_requests,
             cors_origins: self.cors_origins.clone(),
+            max_sweep_variants: self.max_sweep_variants,
         }
     }
 }

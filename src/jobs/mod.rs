@@ -4,8 +4,9 @@
 //! queues it for a fixed pool of worker threads, which run it with
 //! [`run::execute`](crate::run::execute) off the async runtime. A panic fails only its job; a
 //! watchdog stops jobs past their wall time; progress comes from the run's lock-free
-//! [`Control`](crate::run::Control). Results are encoded once and kept in the store. The HTTP
-//! API talks to this module, never to the solver.
+//! [`Control`](crate::run::Control). Results are encoded once and kept in the store. [`Sweeps`] queues
+//! every run of a sweep as a job and assembles its table from their results. The HTTP API talks
+//! to this module, never to the solver.
 
 mod encode;
 mod fingerprint;
@@ -18,6 +19,7 @@ mod record;
 mod service;
 mod status;
 mod store;
+mod sweeps;
 
 pub use encode::encode_result;
 pub use fingerprint::fingerprint;
@@ -28,3 +30,4 @@ pub use record::{Idempotency, JobRecord, Plan, now_ms};
 pub use service::{BeforeRun, Cancelled, Jobs, JobsConfig, Submission, SubmitError, Submitted};
 pub use status::{Failure, JobStatus};
 pub use store::{Inserted, JobStore, Outcome, Page, StoreError, StoredResult};
+pub use sweeps::{SweepRecord, SweepState, SweepSubmitError, Sweeps};
