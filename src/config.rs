@@ -118,6 +118,7 @@ mod tests {
         assert_eq!(cli.config.addr.to_string(), "127.0.0.1:8080");
         assert_eq!(cli.config.jobs().limits, Limits::default());
         assert_eq!(cli.config.cors_origins, ["*"]);
+        assert_eq!(cli.config.api().max_sweep_variants, 1000);
         let cli = Cli::parse_from([
             "drape",
             "--workers",
@@ -126,10 +127,13 @@ mod tests {
             "1.5",
             "--cors-origins",
             "http://a,http://b",
+            "--max-sweep-variants",
+            "12",
         ]);
         assert_eq!(cli.config.jobs().workers, 3);
         assert_eq!(cli.config.jobs().wall_time, Duration::from_millis(1500));
         assert_eq!(cli.config.cors_origins, ["http://a", "http://b"]);
+        assert_eq!(cli.config.api().max_sweep_variants, 12);
     }
 
     #[test]
