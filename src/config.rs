@@ -47,6 +47,9 @@ pub struct Config {
     /// Most values in one result: frames × (particles × 3 per vector field + springs for strain).
     #[arg(long, env = "DRAPE_MAX_OUTPUT_VALUES", default_value_t = Limits::default().max_output_values)]
     pub max_output_values: u64,
+    /// Most variants one sweep may make (POST /sweeps answers 422 above).
+    #[arg(long, env = "DRAPE_MAX_SWEEP_VARIANTS", default_value_t = ApiConfig::default().max_sweep_variants)]
+    pub max_sweep_variants: u64,
     /// Longest a job may run, in seconds; it is then stopped and marked failed.
     #[arg(long, env = "DRAPE_JOB_WALL_TIME", default_value = "300", value_parser = seconds)]
     pub job_wall_time: Duration,
@@ -98,6 +101,7 @@ impl Config {
             request_timeout: self.request_timeout,
             max_concurrent_requests: self.max_concurrent_requests,
             cors_origins: self.cors_origins.clone(),
+            max_sweep_variants: self.max_sweep_variants,
         }
     }
 }
@@ -139,6 +143,7 @@ mod tests {
         assert_eq!(cli.config.store, StoreUrl::Sqlite("drape.db".into()));
         assert_eq!(cli.config.jobs().result_ttl, Duration::from_secs(86_400));
         assert_eq!(cli.config.jobs().lease, Duration::from_secs(30));
+        assert_eq!(cli.config.api().max_sweep_variants, 1000);
         let cli = Cli::parse_from([
             "drape",
             "--workers",
@@ -147,10 +152,13 @@ mod tests {
             "1.5",
             "--cors-origins",
             "http://a,http://b",
+            "--max-sweep-variants",
+            "12",
         ]);
         assert_eq!(cli.config.jobs().workers, 3);
         assert_eq!(cli.config.jobs().wall_time, Duration::from_millis(1500));
         assert_eq!(cli.config.cors_origins, ["http://a", "http://b"]);
+        assert_eq!(cli.config.api().max_sweep_variants, 12);
     }
 
     #[test]

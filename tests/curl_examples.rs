@@ -81,6 +81,22 @@ fn every_curl_script_works_against_drape_serve() {
     assert!(String::from_utf8(ci.stdout).unwrap().contains("status succeeded"));
     assert!(std::fs::read(dir.join("ci.json")).unwrap().starts_with(b"{\"mesh\""));
 
+    let sweep = json(&script(&base, "submit_sweep.sh", &[]));
+    let sweep_id = sweep["id"].as_str().unwrap();
+    assert_eq!(sweep["variants"], 4);
+    assert_eq!(json(&script(&base, "get_sweep.sh", &[sweep_id]))["id"], sweep_id);
+    let plot = dir.join("plot.svg");
+    script(&base, "sweep_plot.sh", &[sweep_id, plot.to_str().unwrap()]);
+    assert!(std::fs::read_to_string(&plot).unwrap().contains("<svg"));
+    let ci = script(&base, "ci_sweep.sh", &["", dir.to_str().unwrap()]);
+    assert!(String::from_utf8(ci.stdout).unwrap().contains("runs not succeeded: 0"));
+    let csv = std::fs::read_to_string(dir.join("sweep.csv")).unwrap();
+    assert_eq!(csv.lines().count(), 5, "{csv}");
+    let csv_again = String::from_utf8(script(&base, "get_sweep.sh", &[sweep_id, "csv"]).stdout).unwrap();
+    assert!(csv_again.starts_with("/integrator,/dt,status,"), "{csv_again}");
+    let cancelled = json(&script(&base, "cancel_sweep.sh", &[sweep_id]));
+    assert_eq!(cancelled["complete"], true);
+
     Command::new("kill").args(["-TERM", &server.id().to_string()]).status().unwrap();
     assert!(server.wait().unwrap().success());
     std::fs::remove_dir_all(&dir).unwrap();

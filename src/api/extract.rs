@@ -47,6 +47,20 @@ impl<S: Send + Sync> FromRequest<S> for SceneBody {
     type Rejection = AppError;
 
     async fn from_request(request: Request, state: &S) -> Result<Self, AppError> {
+        let JsonBody(document) = JsonBody::from_request(request, state).await?;
+        let fingerprint = fingerprint(&document);
+        let scene = Scene::from_value(document.clone())?;
+        Ok(Self { scene, fingerprint, document })
+    }
+}
+
+/// A JSON document from a body declared as JSON.
+pub struct JsonBody(pub Value);
+
+impl<S: Send + Sync> FromRequest<S> for JsonBody {
+    type Rejection = AppError;
+
+    async fn from_request(request: Request, state: &S) -> Result<Self, AppError> {
         let content_type = request
             .headers()
             .get(header::CONTENT_TYPE)
@@ -69,9 +83,7 @@ impl<S: Send + Sync> FromRequest<S> for SceneBody {
             column: e.column(),
             message: e.to_string(),
         })?;
-        let fingerprint = fingerprint(&document);
-        let scene = Scene::from_value(document.clone())?;
-        Ok(Self { scene, fingerprint, document })
+        Ok(Self(document))
     }
 }
 
@@ -103,6 +115,20 @@ impl<S: Send + Sync> FromRequestParts<S> for IdempotencyKey {
                 )],
             }),
         }
+    }
+}
+
+/// A sweep id from the path; a malformed id is an unknown sweep.
+pub struct SweepPath(pub JobId);
+
+impl<S: Send + Sync> FromRequestParts<S> for SweepPath {
+    type Rejection = AppError;
+
+    async fn from_request_parts(parts: &mut Parts, state: &S) -> Result<Self, AppError> {
+        let axum::extract::Path(raw) = axum::extract::Path::<String>::from_request_parts(parts, state)
+            .await
+            .map_err(|e| AppError::Internal(format!("sweep route without an id: {e}")))?;
+        JobId::parse(&raw).map(Self).ok_or(AppError::SweepNotFound { id: raw })
     }
 }
 

@@ -13,6 +13,7 @@ mod metrics;
 mod openapi;
 mod problem;
 mod simulate;
+mod sweeps;
 mod views;
 
 use std::sync::Arc;
@@ -27,7 +28,7 @@ pub use metrics::HttpMetrics;
 pub use openapi::{OPENAPI_YAML, spec as openapi_spec};
 pub use problem::{AppError, PROBLEM_JSON};
 
-use crate::jobs::Jobs;
+use crate::jobs::{Jobs, Sweeps};
 
 /// Settings of the HTTP side.
 #[derive(Clone, Debug)]
@@ -42,6 +43,8 @@ pub struct ApiConfig {
     pub max_concurrent_requests: usize,
     /// Origins allowed by CORS; `*` allows any.
     pub cors_origins: Vec<String>,
+    /// Most variants one sweep may make.
+    pub max_sweep_variants: u64,
 }
 
 impl Default for ApiConfig {
@@ -52,6 +55,7 @@ impl Default for ApiConfig {
             request_timeout: Duration::from_secs(330),
             max_concurrent_requests: 1024,
             cors_origins: vec!["*".into()],
+            max_sweep_variants: 1000,
         }
     }
 }
@@ -61,6 +65,8 @@ impl Default for ApiConfig {
 pub struct AppState {
     /// The job system.
     pub jobs: Jobs,
+    /// The sweeps submitted, each a set of jobs.
+    pub sweeps: Arc<Sweeps>,
     /// HTTP settings.
     pub config: Arc<ApiConfig>,
     /// Request counts and latencies.
@@ -70,7 +76,7 @@ pub struct AppState {
 impl AppState {
     /// State over a running job system.
     pub fn new(jobs: Jobs, config: ApiConfig) -> Self {
-        Self { jobs, config: Arc::new(config), http_metrics: Arc::default() }
+        Self { jobs, sweeps: Arc::default(), config: Arc::new(config), http_metrics: Arc::default() }
     }
 }
 
@@ -102,6 +108,10 @@ pub fn routes() -> Vec<Route> {
         route(Method::DELETE, "/jobs/{id}", jobs::cancel),
         route(Method::GET, "/jobs/{id}/result", jobs::result),
         route(Method::GET, "/jobs/{id}/events", events::events),
+        route(Method::POST, "/sweeps", sweeps::submit),
+        route(Method::GET, "/sweeps/{id}", sweeps::get),
+        route(Method::DELETE, "/sweeps/{id}", sweeps::cancel),
+        route(Method::GET, "/sweeps/{id}/plot.svg", sweeps::plot),
         route(Method::GET, "/healthz", healthz),
         route(Method::GET, "/metrics", metrics::metrics),
         route(Method::GET, "/openapi.json", openapi::openapi),

@@ -9,8 +9,9 @@ use axum::http::{HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Response};
 use serde_json::json;
 
-use crate::jobs::{JobId, JobStatus, StoreError, SubmitError};
+use crate::jobs::{JobId, JobStatus, StoreError, SubmitError, SweepSubmitError};
 use crate::scene::{FieldError, SceneError};
+use crate::sweep::SweepError;
 
 /// The media type of a problem body.
 pub const PROBLEM_JSON: &str = "application/problem+json";
@@ -41,6 +42,11 @@ pub enum AppError {
     },
     /// 404: no job has this id.
     JobNotFound {
+        /// The id asked for.
+        id: String,
+    },
+    /// 404: no sweep has this id.
+    SweepNotFound {
         /// The id asked for.
         id: String,
     },
@@ -107,6 +113,9 @@ pub enum AppError {
     },
     /// 422: the scene is valid but larger than this server's limits.
     OverLimit(Vec<FieldError>),
+    /// 422: the sweep document is invalid, makes too many variants, or a run exceeds this
+    /// server's limits; each problem is at a pointer into the sweep document.
+    InvalidSweep(Vec<FieldError>),
     /// 422: the `Idempotency-Key` was already used with a different body.
     KeyReused {
         /// The key.
@@ -147,7 +156,9 @@ impl AppError {
     pub fn status(&self) -> StatusCode {
         match self {
             Self::MalformedJson { .. } | Self::BadRequest { .. } => StatusCode::BAD_REQUEST,
-            Self::NoRoute { .. } | Self::JobNotFound { .. } => StatusCode::NOT_FOUND,
+            Self::NoRoute { .. } | Self::JobNotFound { .. } | Self::SweepNotFound { .. } => {
+                StatusCode::NOT_FOUND
+            }
             Self::MethodNotAllowed { .. } => StatusCode::METHOD_NOT_ALLOWED,
             Self::NotAcceptable { .. } => StatusCode::NOT_ACCEPTABLE,
             Self::Timeout => StatusCode::REQUEST_TIMEOUT,
@@ -158,6 +169,7 @@ impl AppError {
             Self::UnsupportedMediaType { .. } => StatusCode::UNSUPPORTED_MEDIA_TYPE,
             Self::InvalidScene(_)
             | Self::CannotCarry { .. }
+            | Self::InvalidSweep(_)
             | Self::OverLimit(_)
             | Self::KeyReused { .. }
             | Self::TooSlow { .. } => StatusCode::UNPROCESSABLE_ENTITY,
@@ -181,6 +193,9 @@ impl AppError {
             }
             Self::JobNotFound { id } => {
                 ("job-not-found", "No such job", format!("there is no job with id `{id}`"))
+            }
+            Self::SweepNotFound { id } => {
+                ("sweep-not-found", "No such sweep", format!("there is no sweep with id `{id}`"))
             }
             Self::MethodNotAllowed { method, path } => (
                 "method-not-allowed",
@@ -240,6 +255,7 @@ impl AppError {
                 "The format cannot carry this result",
                 format!("{format} cannot carry what the run recorded: {}", summary(errors)),
             ),
+            Self::InvalidSweep(errors) => ("invalid-sweep", "The sweep cannot run", summary(errors)),
             Self::OverLimit(errors) => (
                 "over-limit",
                 "The scene exceeds this server's limits",
@@ -285,6 +301,7 @@ impl AppError {
         match self {
             Self::InvalidScene(errors)
             | Self::CannotCarry { errors, .. }
+            | Self::InvalidSweep(errors)
             | Self::OverLimit(errors)
             | Self::BadRequest { errors, .. } => Some(errors),
             _ => None,
@@ -379,4 +396,21 @@ fn summary(errors: &[FieldError]) -> String {
         text.push_str(&format!("; and {} more (see `errors`)", errors.len() - SHOWN));
     }
     text
+}
+
+impl From<SweepSubmitError> for AppError {
+    fn from(e: SweepSubmitError) -> Self {
+        match e {
+            SweepSubmitError::Invalid(SweepError::Syntax { line, column, message }) => {
+                Self::MalformedJson { line, column, message }
+            }
+            SweepSubmitError::Invalid(SweepError::Invalid(errors)) => Self::InvalidSweep(errors),
+            SweepSubmitError::Invalid(e @ SweepError::TooManyVariants { .. }) => {
+                Self::InvalidSweep(vec![FieldError::new("/vary", format!("{e} (--max-sweep-variants)"))])
+            }
+            SweepSubmitError::OverLimit(errors) => Self::InvalidSweep(errors),
+            SweepSubmitError::Submit(e) => e.into(),
+            SweepSubmitError::Store(e) => e.into(),
+        }
+    }
 }

@@ -10,6 +10,7 @@
 //! time. The stores are [`MemoryStore`], [`SqliteStore`] (the default) and [`PostgresStore`]
 //! (several instances, one queue); [`StoreUrl`] picks one. The HTTP API talks to this module,
 //! never to the solver.
+//! [`Sweeps`] queues every run of a sweep as a job and assembles its table from their results.
 
 mod encode;
 mod fingerprint;
@@ -25,6 +26,7 @@ mod sql;
 mod sqlite;
 mod status;
 mod store;
+mod sweeps;
 
 pub use encode::{TranscodeError, encode_result, transcode};
 pub use fingerprint::fingerprint;
@@ -40,3 +42,4 @@ pub use status::{Failure, JobStatus};
 pub use store::{
     CancelRequest, Claimed, Inserted, JobStore, Lease, Outcome, Page, Renewed, StoreError, StoredResult,
 };
+pub use sweeps::{SweepRecord, SweepState, SweepSubmitError, Sweeps};

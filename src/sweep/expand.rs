@@ -67,8 +67,8 @@ pub(super) fn expand(document: Value, max_variants: u64) -> Result<Sweep, SweepE
             set(&mut scene, pointer, value.clone()).expect("every pointer was checked above");
             values.push(value);
         }
-        match Scene::from_value(scene) {
-            Ok(scene) => variants.push(Variant { values, scene }),
+        match Scene::from_value(scene.clone()) {
+            Ok(parsed) => variants.push(Variant { values, scene: parsed, document: scene }),
             Err(e) => {
                 let culprits: Vec<String> =
                     pointers.iter().zip(&choice).map(|(p, &c)| format!("/vary/{}/{c}", escape(p))).collect();
@@ -106,6 +106,7 @@ pub(super) fn expand(document: Value, max_variants: u64) -> Result<Sweep, SweepE
         Some(patch @ Value::Object(_)) => {
             let mut scene = base.clone();
             merge_patch(&mut scene, patch);
+            let document = scene.clone();
             let scene = Scene::from_value(scene).map_err(|e| {
                 SweepError::Invalid(
                     scene_problems(&e)
@@ -119,11 +120,12 @@ pub(super) fn expand(document: Value, max_variants: u64) -> Result<Sweep, SweepE
                         .collect(),
                 )
             })?;
-            Some(scene)
+            Some((scene, document))
         }
         Some(_) => return Err(invalid("/reference", "must be an object of scene fields to change".into())),
     };
-    Ok(Sweep { pointers, variants, reference })
+    let (reference, reference_document) = reference.unzip();
+    Ok(Sweep { pointers, variants, reference, reference_document })
 }
 
 fn scene_problems(error: &crate::scene::SceneError) -> Vec<FieldError> {

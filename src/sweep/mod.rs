@@ -32,6 +32,8 @@ pub struct Sweep {
     pub variants: Vec<Variant>,
     /// The reference scene, if one was named.
     pub reference: Option<Scene>,
+    /// The JSON document the reference scene was read from.
+    pub reference_document: Option<Value>,
 }
 
 /// One combination of the varied values.
@@ -41,6 +43,8 @@ pub struct Variant {
     pub values: Vec<Value>,
     /// The scene with those values set.
     pub scene: Scene,
+    /// The JSON document the scene was read from.
+    pub document: Value,
 }
 
 /// Why a document is not a sweep that can run.

@@ -1,0 +1,291 @@
+//! Sweeps run as jobs: every variant of a [`Sweep`] (and its reference) is one job, and the
+//! registry remembers which jobs make which sweep so their table can be assembled at any time.
+//!
+//! [`Sweeps::submit`] checks the whole sweep before queueing anything: the document
+//! ([`Sweep::from_value`]), then every run against the server's [`Limits`](super::Limits), then
+//! that the runs fit in the queue at all. A run refused by the limits is named by the `vary`
+//! entry that chose the offending value (`/vary/~1dt/3`), or by the base scene's field when no
+//! varied value is to blame. If the queue fills part-way, the runs already queued are cancelled,
+//! so a refused sweep leaves nothing running. The registry is in memory: sweeps are forgotten
+//! on restart, and a run whose job the store has forgotten shows as failed.
+
+use std::collections::HashMap;
+use std::sync::{Arc, Mutex, PoisonError};
+
+use serde_json::Value;
+use thiserror::Error;
+
+use super::{JobId, Jobs, StoreError, Submission, SubmitError, now_ms};
+use crate::output::{Format, read_json};
+use crate::scene::{Field, FieldError, FrameSelection, Scene};
+use crate::sweep::{Outcome, Sweep, SweepError, Table};
+
+/// One sweep submitted as jobs.
+#[derive(Debug)]
+pub struct SweepRecord {
+    /// Its id.
+    pub id: JobId,
+    /// The checked sweep: pointers, variant values and scenes.
+    pub sweep: Sweep,
+    /// The reference run's job, if the sweep has a reference.
+    pub reference_job: Option<JobId>,
+    /// One job per variant, in variant order.
+    pub variant_jobs: Vec<JobId>,
+    /// When it was submitted, in milliseconds since the Unix epoch.
+    pub created_ms: u64,
+}
+
+impl SweepRecord {
+    /// Every job of the sweep: the reference first, then the variants.
+    pub fn jobs(&self) -> impl Iterator<Item = &JobId> {
+        self.reference_job.iter().chain(&self.variant_jobs)
+    }
+}
+
+/// The table of a sweep as it stands, and how many of its runs have ended.
+#[derive(Debug)]
+pub struct SweepState {
+    /// The table, with pending rows for runs not yet ended.
+    pub table: Table,
+    /// Runs that have ended (reference included).
+    pub finished: usize,
+    /// Runs in all (reference included).
+    pub runs: usize,
+}
+
+/// Why a sweep was refused.
+#[derive(Debug, Error)]
+pub enum SweepSubmitError {
+    /// The document is not a sweep that can run.
+    #[error(transparent)]
+    Invalid(#[from] SweepError),
+    /// Some runs exceed the server's limits, or there are more runs than the queue holds; each
+    /// problem is at a JSON Pointer into the sweep document.
+    #[error("the sweep exceeds this server's limits")]
+    OverLimit(Vec<FieldError>),
+    /// Queueing failed part-way (a full queue, shutdown, the store); what was queued was cancelled.
+    #[error(transparent)]
+    Submit(#[from] SubmitError),
+    /// The store failed while cancelling.
+    #[error(transparent)]
+    Store(#[from] StoreError),
+}
+
+/// The sweeps of this process, by id.
+#[derive(Debug, Default)]
+pub struct Sweeps {
+    sweeps: Mutex<HashMap<JobId, Arc<SweepRecord>>>,
+}
+
+impl Sweeps {
+    /// Checks a sweep document and queues its reference and every variant as jobs.
+    pub async fn submit(
+        &self,
+        jobs: &Jobs,
+        document: Value,
+        max_variants: u64,
+    ) -> Result<Arc<SweepRecord>, SweepSubmitError> {
+        let vary_lists = vary_lists(&document);
+        let mut sweep = Sweep::from_value(document, max_variants)?;
+        sweep.reference.iter_mut().for_each(keep_final_positions);
+        sweep.reference_document.iter_mut().for_each(keep_final_positions_in_document);
+        for variant in &mut sweep.variants {
+            keep_final_positions(&mut variant.scene);
+            keep_final_positions_in_document(&mut variant.document);
+        }
+
+        let runs = sweep.variants.len() + usize::from(sweep.reference.is_some());
+        let capacity = jobs.config().queue_capacity;
+        if runs > capacity {
+            return Err(SweepSubmitError::OverLimit(vec![FieldError::new(
+                "/vary",
+                format!(
+                    "the sweep makes {runs} runs; this server queues at most {capacity} at once \
+                     (--queue-capacity): split the sweep"
+                ),
+            )]));
+        }
+        let limits = *jobs.limits();
+        let (sweep, problems) = tokio::task::spawn_blocking(move || {
+            let problems = over_limit(&sweep, &vary_lists, &limits);
+            (sweep, problems)
+        })
+        .await
+        .map_err(|e| StoreError::Backend(format!("admission task failed: {e}")))?;
+        if !problems.is_empty() {
+            return Err(SweepSubmitError::OverLimit(problems));
+        }
+
+        let to_queue: Vec<(Scene, Value)> = sweep
+            .reference
+            .iter()
+            .cloned()
+            .zip(sweep.reference_document.iter().cloned())
+            .chain(sweep.variants.iter().map(|v| (v.scene.clone(), v.document.clone())))
+            .collect();
+        let mut queued = Vec::with_capacity(to_queue.len());
+        for (scene, document) in to_queue {
+            // Sweep runs carry no idempotency key, so their fingerprint is never compared.
+            let submission =
+                Submission { scene, document, fingerprint: 0, idempotency_key: None, max_work: None };
+            match jobs.submit(submission).await {
+                Ok(submitted) => queued.push(submitted.job.id),
+                Err(e) => {
+                    for id in &queued {
+                        jobs.cancel(id).await?;
+                    }
+                    return Err(e.into());
+                }
+            }
+        }
+        let mut queued = queued.into_iter();
+        let reference_job = sweep.reference.as_ref().and_then(|_| queued.next());
+        let record = Arc::new(SweepRecord {
+            id: JobId::new(),
+            sweep,
+            reference_job,
+            variant_jobs: queued.collect(),
+            created_ms: now_ms(),
+        });
+        self.lock().insert(record.id.clone(), Arc::clone(&record));
+        tracing::info!(sweep = %record.id, runs, "sweep queued");
+        Ok(record)
+    }
+
+    /// The sweep with this id.
+    pub fn get(&self, id: &JobId) -> Option<Arc<SweepRecord>> {
+        self.lock().get(id).cloned()
+    }
+
+    /// The sweep's table as it stands: ended runs read back from their results, others pending.
+    pub async fn state(&self, jobs: &Jobs, record: &SweepRecord) -> Result<SweepState, StoreError> {
+        let mut outcomes = Vec::with_capacity(record.variant_jobs.len() + 1);
+        for id in record.jobs() {
+            outcomes.push(outcome(jobs, id).await?);
+        }
+        let runs = outcomes.len();
+        let finished = outcomes
+            .iter()
+            .filter(|o| match o {
+                Outcome::Finished(_) => true,
+                Outcome::Pending { status, .. } => !matches!(status.as_str(), "queued" | "running"),
+            })
+            .count();
+        let mut outcomes = outcomes.into_iter();
+        let reference = record.reference_job.as_ref().and_then(|_| outcomes.next());
+        let variants: Vec<Outcome> = outcomes.collect();
+        let table = Table::assemble(&record.sweep, reference.as_ref(), &variants);
+        Ok(SweepState { table, finished, runs })
+    }
+
+    /// Cancels every job of the sweep that has not ended.
+    pub async fn cancel(&self, jobs: &Jobs, record: &SweepRecord) -> Result<(), StoreError> {
+        for id in record.jobs() {
+            jobs.cancel(id).await?;
+        }
+        Ok(())
+    }
+
+    fn lock(&self) -> std::sync::MutexGuard<'_, HashMap<JobId, Arc<SweepRecord>>> {
+        self.sweeps.lock().unwrap_or_else(PoisonError::into_inner)
+    }
+}
+
+/// A sweep run keeps only its final positions, as JSON, which is all its table row needs and
+/// what [`read_json`] reads back.
+fn keep_final_positions(scene: &mut Scene) {
+    scene.output.frames = FrameSelection::Final;
+    scene.output.fields = vec![Field::Positions];
+    scene.output.format = Format::Json;
+}
+
+/// The same change in the document a worker runs from.
+fn keep_final_positions_in_document(document: &mut Value) {
+    if let Some(scene) = document.as_object_mut() {
+        let output = scene.entry("output").or_insert_with(|| serde_json::json!({}));
+        if let Some(output) = output.as_object_mut() {
+            output.insert("frames".into(), "final".into());
+            output.insert("fields".into(), serde_json::json!(["positions"]));
+            output.insert("format".into(), "json".into());
+        }
+    }
+}
+
+/// Where a run stands, from its job.
+async fn outcome(jobs: &Jobs, id: &JobId) -> Result<Outcome, StoreError> {
+    let Some(job) = jobs.get(id).await? else {
+        return Ok(Outcome::Pending {
+            status: "failed".into(),
+            detail: Some(format!("job {id} is no longer kept by this server")),
+        });
+    };
+    if job.status.is_final() {
+        if let Some(result) = jobs.result(id).await? {
+            return Ok(match read_json(&result.bytes) {
+                Ok(recording) => Outcome::Finished(Box::new(recording)),
+                Err(e) => Outcome::Pending {
+                    status: "failed".into(),
+                    detail: Some(format!("job {id}'s result cannot be read: {e}")),
+                },
+            });
+        }
+    }
+    Ok(Outcome::Pending { status: job.status.name().into(), detail: job.message })
+}
+
+/// The values listed under each `vary` pointer, in document order.
+fn vary_lists(document: &Value) -> Vec<(String, Vec<Value>)> {
+    document
+        .get("vary")
+        .and_then(Value::as_object)
+        .map(|vary| {
+            vary.iter().map(|(p, v)| (p.clone(), v.as_array().cloned().unwrap_or_default())).collect()
+        })
+        .unwrap_or_default()
+}
+
+/// Every limit a run exceeds, at the `vary` entry whose value is to blame, or else at the base
+/// scene's (or reference's) field; each pointer is reported once.
+fn over_limit(sweep: &Sweep, vary_lists: &[(String, Vec<Value>)], limits: &super::Limits) -> Vec<FieldError> {
+    let mut problems: Vec<FieldError> = Vec::new();
+    let mut report = |problem: FieldError| {
+        if !problems.iter().any(|p| p.pointer == problem.pointer) {
+            problems.push(problem);
+        }
+    };
+    if let Some(reference) = &sweep.reference {
+        for e in limits.admit(reference).err().unwrap_or_default() {
+            report(FieldError::new(
+                format!("/reference{}", e.pointer),
+                format!("the reference run: {}", e.detail),
+            ));
+        }
+    }
+    for (index, variant) in sweep.variants.iter().enumerate() {
+        for e in limits.admit(&variant.scene).err().unwrap_or_default() {
+            let culprit = sweep.pointers.iter().zip(&variant.values).find(|(p, _)| {
+                e.pointer == **p
+                    || e.pointer.starts_with(&format!("{p}/"))
+                    || p.starts_with(&format!("{}/", e.pointer))
+            });
+            let pointer = match culprit {
+                Some((p, value)) => {
+                    let choice = vary_lists
+                        .iter()
+                        .find(|(q, _)| q == p)
+                        .and_then(|(_, list)| list.iter().position(|v| v == value))
+                        .unwrap_or(0);
+                    format!("/vary/{}/{choice}", escape(p))
+                }
+                None => format!("/scene{}", e.pointer),
+            };
+            report(FieldError::new(pointer, format!("variant {index}: {}", e.detail)));
+        }
+    }
+    problems
+}
+
+/// A JSON object key as a JSON Pointer token (RFC 6901).
+fn escape(key: &str) -> String {
+    key.replace('~', "~0").replace('/', "~1")
+}
