@@ -1,6 +1,7 @@
 //! The service over a real socket with a real HTTP client.
 
 mod common;
+mod serve;
 
 use std::net::SocketAddr;
 use std::sync::Arc;
@@ -11,6 +12,7 @@ use drape::api::{ApiConfig, AppState};
 use drape::jobs::{Jobs, JobsConfig, MemoryStore};
 use futures_util::StreamExt;
 use serde_json::Value;
+use serve::submit;
 use tokio::net::TcpListener;
 
 /// A server on a free port, stopped when the returned sender is dropped.
@@ -28,18 +30,6 @@ async fn start(jobs: JobsConfig) -> (String, tokio::sync::oneshot::Sender<()>) {
         Duration::ZERO,
     ));
     (format!("http://{addr}"), stop)
-}
-
-async fn submit(client: &reqwest::Client, base: &str, scene: &str) -> String {
-    let response = client
-        .post(format!("{base}/jobs"))
-        .header("content-type", "application/json")
-        .body(scene.to_string())
-        .send()
-        .await
-        .unwrap();
-    assert_eq!(response.status(), 202);
-    response.json::<Value>().await.unwrap()["id"].as_str().unwrap().to_string()
 }
 
 async fn wait_for_status(client: &reqwest::Client, base: &str, id: &str, status: &str) {
