@@ -12,6 +12,7 @@
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex, PoisonError};
 
+use bytes::Bytes;
 use serde_json::Value;
 use thiserror::Error;
 
@@ -158,24 +159,17 @@ impl Sweeps {
     }
 
     /// The sweep's table as it stands: ended runs read back from their results, others pending.
-    pub async fn state(&self, jobs: &Jobs, record: &SweepRecord) -> Result<SweepState, StoreError> {
-        let mut outcomes = Vec::with_capacity(record.variant_jobs.len() + 1);
+    /// The store is read here; reading the results back and assembling the table, CPU work that
+    /// grows with the sweep, runs on the blocking pool.
+    pub async fn state(&self, jobs: &Jobs, record: &Arc<SweepRecord>) -> Result<SweepState, StoreError> {
+        let mut runs = Vec::with_capacity(record.variant_jobs.len() + 1);
         for id in record.jobs() {
-            outcomes.push(outcome(jobs, id).await?);
+            runs.push(stored_run(jobs, id).await?);
         }
-        let runs = outcomes.len();
-        let finished = outcomes
-            .iter()
-            .filter(|o| match o {
-                Outcome::Finished(_) => true,
-                Outcome::Pending { status, .. } => !matches!(status.as_str(), "queued" | "running"),
-            })
-            .count();
-        let mut outcomes = outcomes.into_iter();
-        let reference = record.reference_job.as_ref().and_then(|_| outcomes.next());
-        let variants: Vec<Outcome> = outcomes.collect();
-        let table = Table::assemble(&record.sweep, reference.as_ref(), &variants);
-        Ok(SweepState { table, finished, runs })
+        let record = Arc::clone(record);
+        tokio::task::spawn_blocking(move || assemble(&record, runs))
+            .await
+            .map_err(|e| StoreError::Backend(format!("assembling the sweep table failed: {e}")))
     }
 
     /// Cancels every job of the sweep that has not ended.
@@ -211,26 +205,56 @@ fn keep_final_positions_in_document(document: &mut Value) {
     }
 }
 
+/// A run as the store has it: its job's id and stored result, or where it stands without one.
+enum StoredRun {
+    Result(JobId, Bytes),
+    Pending(Outcome),
+}
+
 /// Where a run stands, from its job.
-async fn outcome(jobs: &Jobs, id: &JobId) -> Result<Outcome, StoreError> {
+async fn stored_run(jobs: &Jobs, id: &JobId) -> Result<StoredRun, StoreError> {
     let Some(job) = jobs.get(id).await? else {
-        return Ok(Outcome::Pending {
+        return Ok(StoredRun::Pending(Outcome::Pending {
             status: "failed".into(),
             detail: Some(format!("job {id} is no longer kept by this server")),
-        });
+        }));
     };
     if job.status.is_final() {
         if let Some(result) = jobs.result(id).await? {
-            return Ok(match read_json(&result.bytes) {
+            return Ok(StoredRun::Result(id.clone(), result.bytes));
+        }
+    }
+    Ok(StoredRun::Pending(Outcome::Pending { status: job.status.name().into(), detail: job.message }))
+}
+
+/// Reads each stored result back and assembles the table.
+fn assemble(record: &SweepRecord, runs: Vec<StoredRun>) -> SweepState {
+    let outcomes: Vec<Outcome> = runs
+        .into_iter()
+        .map(|run| match run {
+            StoredRun::Pending(outcome) => outcome,
+            StoredRun::Result(id, bytes) => match read_json(&bytes) {
                 Ok(recording) => Outcome::Finished(Box::new(recording)),
                 Err(e) => Outcome::Pending {
                     status: "failed".into(),
                     detail: Some(format!("job {id}'s result cannot be read: {e}")),
                 },
-            });
-        }
-    }
-    Ok(Outcome::Pending { status: job.status.name().into(), detail: job.message })
+            },
+        })
+        .collect();
+    let runs = outcomes.len();
+    let finished = outcomes
+        .iter()
+        .filter(|o| match o {
+            Outcome::Finished(_) => true,
+            Outcome::Pending { status, .. } => !matches!(status.as_str(), "queued" | "running"),
+        })
+        .count();
+    let mut outcomes = outcomes.into_iter();
+    let reference = record.reference_job.as_ref().and_then(|_| outcomes.next());
+    let variants: Vec<Outcome> = outcomes.collect();
+    let table = Table::assemble(&record.sweep, reference.as_ref(), &variants);
+    SweepState { table, finished, runs }
 }
 
 /// The values listed under each `vary` pointer, in document order.
