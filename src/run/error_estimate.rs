@@ -8,12 +8,15 @@
 //! 30 % off `2^p` (the run is not yet in its asymptotic regime, or something non-smooth such as
 //! a contact dominates).
 //!
-//! Companions run on their own threads beside the main run, so on a machine with a core to
-//! spare they add little wall time; their own wall time is reported as `extra_wall_time_s`.
+//! Companions run beside the main run, one after another, as a second task of the solver's pool
+//! (see [`parallel`](crate::solver::parallel)): on a machine with a core to spare they add little
+//! wall time, and when the cores are all busy they wait their turn rather than oversubscribe
+//! them. Their own wall time is reported as `extra_wall_time_s`.
 //! With `stop_at_rest` the end time is known only when the main run stops, so the companions run
 //! after it, to that time. A companion that diverges or cannot take a single step says so
 //! instead of an estimate.
 
+use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::time::Instant;
 
 use glam::DVec3;
@@ -72,19 +75,17 @@ pub(super) fn execute_with_estimate(
         let companions = factors.iter().map(|&f| run_companion(compiled, control, f, steps, end)).collect();
         (main, companions)
     } else {
-        std::thread::scope(|scope| {
-            let handles: Vec<_> = factors
-                .iter()
-                .map(|&f| {
-                    scope
-                        .spawn(move || run_companion(compiled, control, f, compiled.steps, compiled.duration))
-                })
-                .collect();
-            let main = simulate(compiled, control, true);
-            let companions =
-                handles.into_iter().map(|h| h.join().unwrap_or_else(|_| Companion::failed())).collect();
-            (main, companions)
-        })
+        rayon::join(
+            || simulate(compiled, control, true),
+            || {
+                let companion = |f| run_companion(compiled, control, f, compiled.steps, compiled.duration);
+                // A companion that fails costs the estimate, never the run.
+                let guarded = |f| {
+                    catch_unwind(AssertUnwindSafe(|| companion(f))).unwrap_or_else(|_| Companion::failed())
+                };
+                factors.iter().map(|&f| guarded(f)).collect()
+            },
+        )
     };
     let Outcome { mut recording, final_positions } = main;
     if let Some(fine) = final_positions {

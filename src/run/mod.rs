@@ -20,19 +20,20 @@ pub use recording::{Diverged, Frames, Recording, Samples, Stats, Status};
 use glam::DVec3;
 
 use crate::scene::{Compiled, ErrorEstimateName, Field, FrameSelection, Precision};
-use crate::solver::{Real, Simulation, Vec3};
+use crate::solver::{Real, Simulation, Vec3, Vectors, parallel};
 use schedule::FrameSchedule;
 
 /// Steps between checks of cancellation, progress and rest, when no frame falls sooner.
 const BATCH: u64 = 64;
 
 /// Runs a compiled scene to the end, to divergence, to rest, or until cancelled, with the error
-/// estimate the scene asks for.
+/// estimate the scene asks for. The run executes on the solver's thread pool, so that its bands
+/// and its error estimate's companions share the cores without oversubscribing them.
 pub fn execute(compiled: &Compiled, control: &Control) -> Recording {
-    match compiled.error_estimate {
+    parallel::install(|| match compiled.error_estimate {
         ErrorEstimateName::None => simulate(compiled, control, true).recording,
         method => error_estimate::execute_with_estimate(compiled, control, method),
-    }
+    })
 }
 
 /// A run's recording and, if it finished, the positions it ended with.
@@ -77,7 +78,7 @@ where
             break;
         }
         if let Some(speed) = compiled.stop_at_rest {
-            if taken > 0 && at_rest(simulation.state().velocities.as_slice(), speed) {
+            if taken > 0 && at_rest(&simulation.state().velocities, speed) {
                 rest_time = Some(schedule.time_of(taken));
                 if schedule.steps.get(next_frame.wrapping_sub(1)) != Some(&taken) {
                     recorder.record(&simulation, schedule.time_of(taken));
@@ -134,7 +135,7 @@ where
     Outcome { recording: recorder.finish(compiled, stats, finished), final_positions }
 }
 
-fn at_rest<T: Real>(velocities: &[Vec3<T>], speed: f64) -> bool {
+fn at_rest<T: Real>(velocities: &Vectors<T>, speed: f64) -> bool {
     let limit = T::from_f64(speed * speed);
     velocities.iter().all(|v| v.length_squared() < limit)
 }

@@ -26,7 +26,7 @@ pub fn kinetic_energy<T: Real>(dynamics: &Dynamics<T>, state: &State<T>) -> f64 
     0.5 * dynamics
         .masses
         .iter()
-        .zip(&state.velocities)
+        .zip(state.velocities.iter())
         .map(|(&m, v)| m.to_f64() * v.to_dvec3().length_squared())
         .sum::<f64>()
 }
@@ -39,7 +39,7 @@ pub fn energy<T: Real>(dynamics: &Dynamics<T>, state: &State<T>) -> Energy {
         - dynamics
             .masses
             .iter()
-            .zip(&state.positions)
+            .zip(state.positions.iter())
             .map(|(&m, x)| m.to_f64() * gravity.dot(x.to_dvec3()))
             .sum::<f64>();
     Energy {

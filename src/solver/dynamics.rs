@@ -5,10 +5,10 @@
 //! A force that a scene does not have is `None` and costs nothing. Wind keeps scratch (vertex
 //! normals), so an evaluation takes `&mut self`.
 
-use super::grid_springs::{self, GridSprings};
+use super::grid_springs::{self, GridSprings, SymplecticInputs};
 use super::model::{Model, Spring};
 use super::wind::{Wind, WindConfig};
-use super::{Real, State, Vec3, springs};
+use super::{Real, State, Vec3, Vectors, springs};
 
 /// Particle masses and the forces acting on them.
 #[derive(Clone, Debug)]
@@ -92,22 +92,24 @@ impl<T: Real> Dynamics<T> {
 
     /// Total force on each particle at state `(x, v)` and time `t` (seconds), written into
     /// `forces`.
-    pub fn forces(&mut self, x: &[Vec3<T>], v: &[Vec3<T>], t: f64, forces: &mut [Vec3<T>]) {
-        let body = self.gravity.unwrap_or(Vec3::ZERO);
-        match self.drag {
-            Some(drag) => {
-                for ((f, &m), &v) in forces.iter_mut().zip(&self.masses).zip(v) {
-                    *f = (body - v * drag) * m;
+    pub fn forces(&mut self, x: &Vectors<T>, v: &Vectors<T>, t: f64, forces: &mut Vectors<T>) {
+        let body = self.gravity.unwrap_or(Vec3::ZERO).to_array();
+        for ((f, v), g) in forces.axes_mut().into_iter().zip(v.axes()).zip(body) {
+            match self.drag {
+                Some(drag) => {
+                    for ((f, &m), &v) in f.iter_mut().zip(&self.masses).zip(v) {
+                        *f = (g - v * drag) * m;
+                    }
                 }
-            }
-            None => {
-                for (f, &m) in forces.iter_mut().zip(&self.masses) {
-                    *f = body * m;
+                None => {
+                    for (f, &m) in f.iter_mut().zip(&self.masses) {
+                        *f = g * m;
+                    }
                 }
             }
         }
         for grid in &mut self.grids {
-            grid.add_forces(x, v, &self.masses, forces);
+            grid.add_forces(x, v, forces);
         }
         springs::add_forces(&self.listed_springs, x, v, forces);
         if let Some(wind) = &mut self.wind {
@@ -115,43 +117,41 @@ impl<T: Real> Dynamics<T> {
         }
     }
 
-    /// One symplectic Euler step in a single pass over the particles, for a scene that is one
-    /// grid body and nothing else (no other springs, no wind): the forces start in the grid's
-    /// per-axis arrays as the body forces, the springs add to them, and the update writes the new
-    /// state. Returns the stability watch's sums over the new state (see
-    /// [`GridSprings::symplectic_update`]), or `None`, having done nothing, for any other scene.
-    pub(crate) fn fused_symplectic_step(&mut self, state: &mut State<T>, h: T) -> Option<(T, T)> {
-        let [grid] = self.grids.as_mut_slice() else { return None };
-        if self.wind.is_some()
-            || !self.listed_springs.is_empty()
-            || grid.particles() != (0..self.masses.len())
-        {
+    /// Whether [`symplectic_step`](Self::symplectic_step) can advance this scene: one grid body
+    /// that is every particle, and no other force than gravity, drag and its springs.
+    pub(crate) fn has_fused_symplectic_step(&self) -> bool {
+        matches!(self.grids.as_slice(), [grid] if grid.particles() == (0..self.masses.len()))
+            && self.wind.is_none()
+            && self.listed_springs.is_empty()
+    }
+
+    /// One symplectic Euler step from `state` into `next` in a single pass over the particles,
+    /// the forces never stored (see [`GridSprings::symplectic_step`]), for a scene that
+    /// [has one](Self::has_fused_symplectic_step). Returns the stability watch's sums over `next`
+    /// (`Σ m |v|²` and the sum of every position component), or `None`, having done nothing, for
+    /// any other scene.
+    pub(crate) fn symplectic_step(&mut self, state: &State<T>, next: &mut State<T>, h: T) -> Option<(T, T)> {
+        if !self.has_fused_symplectic_step() {
             return None;
         }
-        let body = self.gravity.unwrap_or(Vec3::ZERO);
-        let masses = &self.masses;
-        match self.drag {
-            Some(drag) => {
-                grid.load(&state.positions, &state.velocities, masses, |m, v| (body - v * drag) * m)
-            }
-            None => grid.load(&state.positions, &state.velocities, masses, |m, _| body * m),
-        }
-        grid.add_springs();
-        Some(grid.symplectic_update(
-            masses,
-            &self.inverse_masses,
+        let inputs = SymplecticInputs {
+            masses: &self.masses,
+            inverse_masses: &self.inverse_masses,
+            gravity: self.gravity.unwrap_or(Vec3::ZERO),
+            drag: self.drag.unwrap_or(T::ZERO),
             h,
-            &mut state.positions,
-            &mut state.velocities,
-        ))
+        };
+        Some(self.grids[0].symplectic_step(&inputs, state, next))
     }
 
     /// Acceleration of each particle at state `(x, v)` and time `t`, written into
     /// `accelerations`; zero for pinned particles.
-    pub fn accelerations(&mut self, x: &[Vec3<T>], v: &[Vec3<T>], t: f64, accelerations: &mut [Vec3<T>]) {
+    pub fn accelerations(&mut self, x: &Vectors<T>, v: &Vectors<T>, t: f64, accelerations: &mut Vectors<T>) {
         self.forces(x, v, t, accelerations);
-        for (a, &w) in accelerations.iter_mut().zip(&self.inverse_masses) {
-            *a *= w;
+        for axis in accelerations.axes_mut() {
+            for (a, &w) in axis.iter_mut().zip(&self.inverse_masses) {
+                *a *= w;
+            }
         }
     }
 }

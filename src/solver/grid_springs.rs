@@ -1,21 +1,34 @@
 //! The springs of a cloth evaluated as row stencils: the fast force pass for grid bodies.
 //!
 //! A cloth's springs follow a fixed stencil, six families of the form `(i + ai, j + aj)` to
-//! `(i + bi, j + bj)`, each with one rest length, stiffness and damping. Along a grid row the
-//! first ends of a family are consecutive particles and so are the second ends, so a family's
-//! springs on one row are two contiguous runs of particles: no index lists. The pass copies the
-//! body's positions and velocities into per-axis arrays once, evaluates every spring once per row
-//! and family into a row buffer (a branch-free loop the compiler vectorises), then adds the row to
-//! the first ends and subtracts it from the second. Rows are visited in order and every family of
-//! a row in turn, so the three rows a stencil reaches stay in the first-level cache.
+//! `(i + bi, j + bj)` with non-negative offsets, each with one rest length, stiffness and damping.
+//! Along a grid row the first ends of a family are consecutive particles and so are the second
+//! ends, so a family's springs on one row are two contiguous runs of each axis of the state: no
+//! index lists. Each family's forces along a row are computed once into a row buffer (a
+//! branch-free loop the compiler vectorises), then added to the first ends and subtracted from
+//! the second.
+//!
+//! Rows are visited in order. A spring of row `j` reaches rows `j` to `j + reach` only, so once
+//! row `j`'s springs are done, row `j` has its whole force: it is handed on (to the forces array,
+//! or straight to the symplectic update, which then needs no force array at all) and its
+//! accumulator is reused by row `j + reach + 1`. Only `reach + 1` rows of forces are ever live,
+//! and they stay in the first-level cache.
+//!
+//! Large grids are cut into bands of rows run by the solver's threads
+//! ([`parallel`](super::parallel)). A band owns its rows' forces and outputs; it recomputes the
+//! `reach` rows of springs above it that reach into it, and drops their contributions to rows it
+//! does not own. Every particle's force is therefore summed in the same order, by the same
+//! operations, whatever the number of bands: results do not depend on the thread count.
 //!
 //! The result is the same force as the general spring-list loop, summed in a different, fixed
 //! order: deterministic, and equal to it up to rounding.
 
 use std::ops::Range;
 
+use rayon::prelude::*;
+
 use super::model::{Model, Spring, SpringGrid};
-use super::{Real, Vec3};
+use super::{Real, State, Vec3, Vectors, parallel};
 
 /// One spring family of a grid: its stencil offsets and its parameters.
 #[derive(Clone, Copy, Debug)]
@@ -27,17 +40,53 @@ struct Family<T> {
     damping: T,
 }
 
-/// A cloth body whose springs are evaluated by stencil, with its per-axis scratch.
+/// The shape of a grid body's springs.
+#[derive(Clone, Debug)]
+struct Layout<T> {
+    nx: usize,
+    ny: usize,
+    families: Vec<Family<T>>,
+    /// The most rows a spring spans: row `j`'s springs reach rows `j..=j + reach`.
+    reach: usize,
+}
+
+/// A band of rows with its scratch.
+#[derive(Clone, Debug)]
+struct Band<T> {
+    rows: Range<usize>,
+    /// Force accumulators of the `reach + 1` rows in flight, per axis: row `r` in slot
+    /// `r % (reach + 1)`.
+    ring: [Vec<T>; 3],
+    /// One family's spring forces along a row, per axis.
+    row_forces: [Vec<T>; 3],
+}
+
+/// What a band does with its rows' forces. Rows are numbered from the band's first.
+trait RowSink<T> {
+    /// Sets the force a row starts from, before any spring adds to it.
+    fn start(&mut self, row: usize, force: [&mut [T]; 3]);
+    /// Takes a row's force once every spring has added to it.
+    fn finish(&mut self, row: usize, force: [&[T]; 3]);
+}
+
+/// A cloth body whose springs are evaluated by stencil, with its per-band scratch.
 #[derive(Clone, Debug)]
 pub(crate) struct GridSprings<T> {
     first: usize,
-    nx: usize,
-    ny: usize,
     springs: Range<usize>,
-    families: Vec<Family<T>>,
-    /// Per axis: positions x, y, z then velocities x, y, z.
-    state: [Vec<T>; 6],
-    forces: [Vec<T>; 3],
+    layout: Layout<T>,
+    /// Rows per band (the last band may have fewer).
+    band_rows: usize,
+    bands: Vec<Band<T>>,
+}
+
+/// The forces and the state update of symplectic Euler need from outside the grid.
+pub(crate) struct SymplecticInputs<'a, T> {
+    pub masses: &'a [T],
+    pub inverse_masses: &'a [T],
+    pub gravity: Vec3<T>,
+    pub drag: T,
+    pub h: T,
 }
 
 impl<T: Real> GridSprings<T> {
@@ -81,21 +130,29 @@ impl<T: Real> GridSprings<T> {
         if next.next().is_some() {
             return None;
         }
-        let n = nx * ny;
-        Some(Self {
-            first: grid.first_particle,
-            nx,
-            ny,
-            springs: grid.springs.clone(),
-            families,
-            state: std::array::from_fn(|_| vec![T::ZERO; n]),
-            forces: std::array::from_fn(|_| vec![T::ZERO; n]),
-        })
+        let reach = families.iter().map(|f| f.offsets[1].max(f.offsets[3])).max().unwrap_or(0);
+        let layout = Layout { nx, ny, families, reach };
+        let count = parallel::band_count(ny, nx * ny, 8 * (reach + 1));
+        Some(Self::with_bands(grid.first_particle, grid.springs.clone(), layout, count))
+    }
+
+    /// The evaluator cut into `count` bands of rows (at most one per row).
+    fn with_bands(first: usize, springs: Range<usize>, layout: Layout<T>, count: usize) -> Self {
+        let ny = layout.ny.max(1);
+        let band_rows = ny.div_ceil(count.clamp(1, ny.min(MAX_BANDS)));
+        let bands = (0..ny.div_ceil(band_rows))
+            .map(|b| Band {
+                rows: b * band_rows..((b + 1) * band_rows).min(layout.ny),
+                ring: std::array::from_fn(|_| vec![T::ZERO; (layout.reach + 1) * layout.nx]),
+                row_forces: std::array::from_fn(|_| vec![T::ZERO; layout.nx]),
+            })
+            .collect();
+        Self { first, springs, layout, band_rows, bands }
     }
 
     /// The particles of the body.
     pub fn particles(&self) -> Range<usize> {
-        self.first..self.first + self.nx * self.ny
+        self.first..self.first + self.layout.nx * self.layout.ny
     }
 
     /// The springs of the model's list this body evaluates.
@@ -103,148 +160,294 @@ impl<T: Real> GridSprings<T> {
         self.springs.clone()
     }
 
-    /// Adds every spring force of the body to `forces` (`masses` are the particles').
-    pub fn add_forces(&mut self, x: &[Vec3<T>], v: &[Vec3<T>], masses: &[T], forces: &mut [Vec3<T>]) {
-        self.load(x, v, masses, |_, _| Vec3::ZERO);
-        self.add_springs();
-        let [fx, fy, fz] = &self.forces;
-        for (((f, &x), &y), &z) in forces[self.particles()].iter_mut().zip(fx).zip(fy).zip(fz) {
-            *f += Vec3::new(x, y, z);
-        }
-    }
-
-    /// Copies the body's positions and velocities into the per-axis arrays and starts each
-    /// particle's force at `initial(mass, velocity)`.
-    pub fn load(
-        &mut self,
-        x: &[Vec3<T>],
-        v: &[Vec3<T>],
-        masses: &[T],
-        initial: impl Fn(T, Vec3<T>) -> Vec3<T>,
-    ) {
+    /// Adds every spring force of the body to `forces`.
+    pub fn add_forces(&mut self, x: &Vectors<T>, v: &Vectors<T>, forces: &mut Vectors<T>) {
         let range = self.particles();
-        let n = range.len();
-        let (x, v, masses) = (&x[range.clone()], &v[range.clone()], &masses[range]);
-        let [px, py, pz, vx, vy, vz] = self.state.each_mut().map(|axis| &mut axis[..n]);
-        let [fx, fy, fz] = self.forces.each_mut().map(|axis| &mut axis[..n]);
-        for k in 0..n {
-            let (position, velocity) = (x[k], v[k]);
-            (px[k], py[k], pz[k]) = (position.x, position.y, position.z);
-            (vx[k], vy[k], vz[k]) = (velocity.x, velocity.y, velocity.z);
-            let f = initial(masses[k], velocity);
-            (fx[k], fy[k], fz[k]) = (f.x, f.y, f.z);
+        let (x, v) = (x.range(range.clone()), v.range(range.clone()));
+        let nx = self.layout.nx;
+        let layout = &self.layout;
+        let [fx, fy, fz] = forces.range_mut(range);
+        if let [band] = self.bands.as_mut_slice() {
+            band.sweep(layout, x, v, &mut AddTo { nx, out: [fx, fy, fz] });
+            return;
         }
+        let chunk = self.band_rows * nx;
+        (
+            self.bands.par_iter_mut(),
+            fx.par_chunks_mut(chunk),
+            fy.par_chunks_mut(chunk),
+            fz.par_chunks_mut(chunk),
+        )
+            .into_par_iter()
+            .for_each(|(band, fx, fy, fz)| band.sweep(layout, x, v, &mut AddTo { nx, out: [fx, fy, fz] }));
     }
 
-    /// Adds every spring force to the loaded forces, row after row.
-    pub fn add_springs(&mut self) {
-        let nx = self.nx;
-        for j in 0..self.ny {
-            for family in &self.families {
-                let [ai, aj, bi, bj] = family.offsets;
-                if j + aj.max(bj) >= self.ny {
-                    continue;
-                }
-                let len = nx - ai.max(bi);
-                let (p, q) = ((j + aj) * nx + ai, (j + bj) * nx + bi);
-                spring_row(family, &self.state, &mut self.forces, p, q, len);
-            }
-        }
-    }
-
-    /// Symplectic Euler on the body from the loaded state and forces (`v += h f w`, then
-    /// `x += h v`), written to `x` and `v`. Returns `Σ m |v|²` and the sum of every position
-    /// component, summed in particle order as the stability watch sums them.
-    pub fn symplectic_update(
-        &self,
-        masses: &[T],
-        inverse_masses: &[T],
-        h: T,
-        x: &mut [Vec3<T>],
-        v: &mut [Vec3<T>],
+    /// One symplectic Euler step of the body from `state` into `next` (`v' = v + h f / m`, then
+    /// `x' = x + h v'`), where `f` is gravity, drag and the springs. The forces never leave the
+    /// row accumulators. Returns `Σ m |v'|²` and the sum of every component of `x'`, for the
+    /// stability watch.
+    pub fn symplectic_step(
+        &mut self,
+        inputs: &SymplecticInputs<T>,
+        state: &State<T>,
+        next: &mut State<T>,
     ) -> (T, T) {
         let range = self.particles();
-        let n = range.len();
-        let (x, v) = (&mut x[range.clone()], &mut v[range.clone()]);
-        let (masses, inverse_masses) = (&masses[range.clone()], &inverse_masses[range]);
-        let [px, py, pz, vx, vy, vz] = self.state.each_ref().map(|axis| &axis[..n]);
-        let [fx, fy, fz] = self.forces.each_ref().map(|axis| &axis[..n]);
-        let (mut twice_kinetic, mut position_sum) = (T::ZERO, T::ZERO);
-        for k in 0..n {
-            let acceleration = Vec3::new(fx[k], fy[k], fz[k]) * inverse_masses[k];
-            let velocity = Vec3::new(vx[k], vy[k], vz[k]) + acceleration * h;
-            let position = Vec3::new(px[k], py[k], pz[k]) + velocity * h;
-            (x[k], v[k]) = (position, velocity);
-            twice_kinetic += masses[k] * velocity.length_squared();
-            position_sum += position.x + position.y + position.z;
+        let (x, v) = (state.positions.range(range.clone()), state.velocities.range(range.clone()));
+        let masses = &inputs.masses[range.clone()];
+        let inverse_masses = &inputs.inverse_masses[range.clone()];
+        let nx = self.layout.nx;
+        let layout = &self.layout;
+        let [px, py, pz] = next.positions.range_mut(range.clone());
+        let [vx, vy, vz] = next.velocities.range_mut(range);
+        let update = |first_row: usize, positions, velocities| SymplecticUpdate {
+            offset: first_row * nx,
+            nx,
+            x,
+            v,
+            masses,
+            inverse_masses,
+            gravity: inputs.gravity.to_array(),
+            drag: inputs.drag,
+            h: inputs.h,
+            positions,
+            velocities,
+            sums: (T::ZERO, T::ZERO),
+        };
+        if let [band] = self.bands.as_mut_slice() {
+            let mut sink = update(0, [px, py, pz], [vx, vy, vz]);
+            band.sweep(layout, x, v, &mut sink);
+            return sink.sums;
         }
-        (twice_kinetic, position_sum)
+        let chunk = self.band_rows * nx;
+        let outputs = (
+            px.par_chunks_mut(chunk),
+            py.par_chunks_mut(chunk),
+            pz.par_chunks_mut(chunk),
+            vx.par_chunks_mut(chunk),
+            vy.par_chunks_mut(chunk),
+            vz.par_chunks_mut(chunk),
+        );
+        let mut band_sums = [(T::ZERO, T::ZERO); MAX_BANDS];
+        (self.bands.par_iter_mut(), band_sums.par_iter_mut(), outputs.into_par_iter())
+            .into_par_iter()
+            .for_each(|(band, sums, (px, py, pz, vx, vy, vz))| {
+                let mut sink = update(band.rows.start, [px, py, pz], [vx, vy, vz]);
+                band.sweep(layout, x, v, &mut sink);
+                *sums = sink.sums;
+            });
+        band_sums.iter().fold((T::ZERO, T::ZERO), |(k, p), &(bk, bp)| (k + bk, p + bp))
     }
 }
 
-/// Springs evaluated together: the row loop works on fixed-size blocks of this many, copied into
-/// local arrays, which the compiler turns into vector instructions without having to prove that
-/// the inputs and the output do not overlap. A row's last, partial block is padded with
-/// coincident ends, whose force is zero, and only its real springs are kept.
+impl<T: Real> Band<T> {
+    /// Evaluates every spring that reaches the band's rows, row after row, handing each row's
+    /// total force to `sink` as soon as it is complete.
+    fn sweep(&mut self, layout: &Layout<T>, x: [&[T]; 3], v: [&[T]; 3], sink: &mut impl RowSink<T>) {
+        let Layout { nx, ny, reach, .. } = *layout;
+        let (first, end) = (self.rows.start, self.rows.end);
+        let owned = |row: usize| (first..end).contains(&row);
+        let first_springs = first.saturating_sub(reach);
+        for row in first..(first_springs + reach).min(end) {
+            sink.start(row - first, ring_row(&mut self.ring, row, reach, nx));
+        }
+        for j in first_springs..end {
+            let entering = j + reach;
+            if owned(entering) {
+                sink.start(entering - first, ring_row(&mut self.ring, entering, reach, nx));
+            }
+            for family in &layout.families {
+                let [ai, aj, bi, bj] = family.offsets;
+                let (row_a, row_b) = (j + aj, j + bj);
+                if row_a.max(row_b) >= ny || !(owned(row_a) || owned(row_b)) {
+                    continue;
+                }
+                let len = nx - ai.max(bi);
+                let (p, q) = (row_a * nx + ai, row_b * nx + bi);
+                if owned(row_a) && owned(row_b) && row_a != row_b {
+                    // Two different accumulator rows: the springs add to both in one pass.
+                    let [a, b] = two_ring_rows(&mut self.ring, [row_a, row_b], reach, nx);
+                    let first_ends = a.map(|axis| &mut axis[ai..ai + len]);
+                    let second_ends = b.map(|axis| &mut axis[bi..bi + len]);
+                    spring_row(family, x, v, p, q, &mut AddAndSubtract { first_ends, second_ends });
+                    continue;
+                }
+                let forces = self.row_forces.each_mut().map(|axis| &mut axis[..len]);
+                spring_row(family, x, v, p, q, &mut Store(forces));
+                for (row, start, sign) in [(row_a, ai, T::ONE), (row_b, bi, -T::ONE)] {
+                    if owned(row) {
+                        let ring = ring_row(&mut self.ring, row, reach, nx);
+                        for (acc, f) in ring.into_iter().zip(&self.row_forces) {
+                            for (a, &f) in acc[start..start + len].iter_mut().zip(&f[..len]) {
+                                *a += sign * f;
+                            }
+                        }
+                    }
+                }
+            }
+            if j >= first {
+                let slot = j % (reach + 1);
+                sink.finish(j - first, self.ring.each_ref().map(|axis| &axis[slot * nx..(slot + 1) * nx]));
+            }
+        }
+    }
+}
+
+/// The accumulator of `row`, per axis.
+#[inline]
+fn ring_row<T>(ring: &mut [Vec<T>; 3], row: usize, reach: usize, nx: usize) -> [&mut [T]; 3] {
+    let slot = row % (reach + 1);
+    ring.each_mut().map(|axis| &mut axis[slot * nx..(slot + 1) * nx])
+}
+
+/// The accumulators of two different rows, per axis.
+#[inline]
+fn two_ring_rows<T>(ring: &mut [Vec<T>; 3], rows: [usize; 2], reach: usize, nx: usize) -> [[&mut [T]; 3]; 2] {
+    let [a, b] = rows.map(|row| row % (reach + 1) * nx);
+    let [(ax, bx), (ay, by), (az, bz)] = ring.each_mut().map(|axis| two_rows(axis, a, b, nx));
+    [[ax, ay, az], [bx, by, bz]]
+}
+
+/// The `nx` values from `a` and from `b` (`a != b`, the two runs apart).
+#[inline]
+fn two_rows<T>(axis: &mut [T], a: usize, b: usize, nx: usize) -> (&mut [T], &mut [T]) {
+    let (low, high) = axis.split_at_mut(a.max(b));
+    let (first, second) = (&mut low[a.min(b)..a.min(b) + nx], &mut high[..nx]);
+    if a < b { (first, second) } else { (second, first) }
+}
+
+/// The most bands a grid is cut into: more than the cores of any machine this runs on would
+/// only add recomputed rows.
+const MAX_BANDS: usize = 64;
+
+/// Springs evaluated side by side: a row is evaluated in blocks of this many, copied into local
+/// arrays, which the compiler turns into vector instructions without having to prove that inputs
+/// and outputs do not overlap (eight `f32` fill an AVX2 register). A row's last, partial block is
+/// padded with coincident ends, whose force is zero, and only its real springs are handed on.
 const LANES: usize = 8;
 
-/// Adds the force of `len` springs of one family, from particles `p..p + len` to `q..q + len`,
-/// to the first ends' forces and subtracts it from the second ends'. `state` holds the per-axis
-/// positions then velocities, `forces` the per-axis forces.
-#[inline(never)]
+/// One block's forces on the first ends, per axis.
+type Block<T> = [[T; LANES]; 3];
+
+/// Where a row of spring forces goes, block by block.
+trait SpringOutput<T> {
+    /// The number of springs.
+    fn len(&self) -> usize;
+    /// Takes the forces of springs `start..start + LANES`.
+    fn put(&mut self, start: usize, block: &Block<T>);
+    /// Takes the forces of springs `start..start + count` (`count < LANES`), the first `count`
+    /// lanes of `block`.
+    fn put_partial(&mut self, start: usize, count: usize, block: &Block<T>);
+}
+
+/// Writes the forces, per axis.
+struct Store<'a, T>([&'a mut [T]; 3]);
+
+impl<T: Real> SpringOutput<T> for Store<'_, T> {
+    #[inline(always)]
+    fn len(&self) -> usize {
+        self.0[0].len()
+    }
+
+    #[inline(always)]
+    fn put(&mut self, start: usize, block: &Block<T>) {
+        for (axis, lanes) in self.0.iter_mut().zip(block) {
+            axis[start..start + LANES].copy_from_slice(lanes);
+        }
+    }
+
+    #[inline(always)]
+    fn put_partial(&mut self, start: usize, count: usize, block: &Block<T>) {
+        for (axis, lanes) in self.0.iter_mut().zip(block) {
+            axis[start..start + count].copy_from_slice(&lanes[..count]);
+        }
+    }
+}
+
+/// Adds each force to the first ends' accumulators and subtracts it from the second ends'.
+struct AddAndSubtract<'a, T> {
+    first_ends: [&'a mut [T]; 3],
+    second_ends: [&'a mut [T]; 3],
+}
+
+impl<T: Real> SpringOutput<T> for AddAndSubtract<'_, T> {
+    #[inline(always)]
+    fn len(&self) -> usize {
+        self.first_ends[0].len()
+    }
+
+    #[inline(always)]
+    fn put(&mut self, start: usize, block: &Block<T>) {
+        for ((a, b), lanes) in self.first_ends.iter_mut().zip(&mut self.second_ends).zip(block) {
+            let a: &mut [T; LANES] = (&mut a[start..start + LANES]).try_into().expect("a whole block");
+            for (a, &f) in a.iter_mut().zip(lanes) {
+                *a += f;
+            }
+            let b: &mut [T; LANES] = (&mut b[start..start + LANES]).try_into().expect("a whole block");
+            for (b, &f) in b.iter_mut().zip(lanes) {
+                *b -= f;
+            }
+        }
+    }
+
+    #[inline(always)]
+    fn put_partial(&mut self, start: usize, count: usize, block: &Block<T>) {
+        for ((a, b), lanes) in self.first_ends.iter_mut().zip(&mut self.second_ends).zip(block) {
+            for (a, &f) in a[start..start + count].iter_mut().zip(lanes) {
+                *a += f;
+            }
+            for (b, &f) in b[start..start + count].iter_mut().zip(lanes) {
+                *b -= f;
+            }
+        }
+    }
+}
+
+/// Evaluates the springs of one family along a row, from particles `p..` to `q..`, one per
+/// place of `out`.
+#[inline]
 fn spring_row<T: Real>(
     family: &Family<T>,
-    state: &[Vec<T>; 6],
-    forces: &mut [Vec<T>; 3],
+    x: [&[T]; 3],
+    v: [&[T]; 3],
     p: usize,
     q: usize,
-    len: usize,
+    out: &mut impl SpringOutput<T>,
 ) {
-    let mut s = 0;
-    while s + LANES <= len {
-        let mut ends_a = [[T::ZERO; LANES]; 6];
-        let mut ends_b = [[T::ZERO; LANES]; 6];
-        for ((a, b), axis) in ends_a.iter_mut().zip(&mut ends_b).zip(state) {
-            a.copy_from_slice(&axis[p + s..p + s + LANES]);
-            b.copy_from_slice(&axis[q + s..q + s + LANES]);
-        }
-        let block = spring_block(family, &ends_a, &ends_b);
-        for (axis, block) in forces.iter_mut().zip(&block) {
-            let first: &mut [T; LANES] = (&mut axis[p + s..p + s + LANES]).try_into().expect("a full block");
-            for (f, &b) in first.iter_mut().zip(block) {
-                *f += b;
-            }
-            let second: &mut [T; LANES] = (&mut axis[q + s..q + s + LANES]).try_into().expect("a full block");
-            for (f, &b) in second.iter_mut().zip(block) {
-                *f -= b;
-            }
-        }
-        s += LANES;
+    let len = out.len();
+    let mut start = 0;
+    while start + LANES <= len {
+        let a = load_block(x, v, p + start, LANES);
+        let b = load_block(x, v, q + start, LANES);
+        out.put(start, &spring_block(family, &a, &b));
+        start += LANES;
     }
-    let width = len - s;
-    if width == 0 {
-        return;
+    if start < len {
+        let count = len - start;
+        let a = load_block(x, v, p + start, count);
+        let b = load_block(x, v, q + start, count);
+        out.put_partial(start, count, &spring_block(family, &a, &b));
     }
-    let mut ends_a = [[T::ZERO; LANES]; 6];
-    let mut ends_b = [[T::ZERO; LANES]; 6];
-    for ((a, b), axis) in ends_a.iter_mut().zip(&mut ends_b).zip(state) {
-        a[..width].copy_from_slice(&axis[p + s..p + len]);
-        b[..width].copy_from_slice(&axis[q + s..q + len]);
-    }
-    let block = spring_block(family, &ends_a, &ends_b);
-    for (axis, block) in forces.iter_mut().zip(&block) {
-        for (f, &b) in axis[p + s..p + len].iter_mut().zip(block) {
-            *f += b;
-        }
-        for (f, &b) in axis[q + s..q + len].iter_mut().zip(block) {
-            *f -= b;
+}
+
+/// The positions then velocities of `count ≤ LANES` consecutive particles from `first`, per
+/// component, padded with zeros.
+#[inline(always)]
+fn load_block<T: Real>(x: [&[T]; 3], v: [&[T]; 3], first: usize, count: usize) -> [[T; LANES]; 6] {
+    let mut block = [[T::ZERO; LANES]; 6];
+    for (lanes, axis) in block.iter_mut().zip(x.into_iter().chain(v)) {
+        if count == LANES {
+            lanes.copy_from_slice(&axis[first..first + LANES]);
+        } else {
+            lanes[..count].copy_from_slice(&axis[first..first + count]);
         }
     }
+    block
 }
 
 /// The forces on the first ends of a block of springs, per axis.
 #[inline(always)]
-fn spring_block<T: Real>(family: &Family<T>, a: &[[T; LANES]; 6], b: &[[T; LANES]; 6]) -> [[T; LANES]; 3] {
+fn spring_block<T: Real>(family: &Family<T>, a: &[[T; LANES]; 6], b: &[[T; LANES]; 6]) -> Block<T> {
     let mut block = [[T::ZERO; LANES]; 3];
     for lane in 0..LANES {
         let [fx, fy, fz] = spring_force(family, |k| a[k][lane], |k| b[k][lane]);
@@ -271,6 +474,109 @@ fn spring_force<T: Real>(family: &Family<T>, a: impl Fn(usize) -> T, b: impl Fn(
     if l2 > T::from_f64(1e-30) { [nx * magnitude, ny * magnitude, nz * magnitude] } else { [T::ZERO; 3] }
 }
 
+/// A sink that adds each row's spring forces to a band of a forces array: the row starts from
+/// what the array holds (gravity and drag) and is written back complete.
+struct AddTo<'a, T> {
+    nx: usize,
+    out: [&'a mut [T]; 3],
+}
+
+impl<T: Real> RowSink<T> for AddTo<'_, T> {
+    fn start(&mut self, row: usize, force: [&mut [T]; 3]) {
+        let cells = row * self.nx..(row + 1) * self.nx;
+        for (f, out) in force.into_iter().zip(&self.out) {
+            f.copy_from_slice(&out[cells.clone()]);
+        }
+    }
+
+    fn finish(&mut self, row: usize, force: [&[T]; 3]) {
+        let cells = row * self.nx..(row + 1) * self.nx;
+        for (out, f) in self.out.iter_mut().zip(force) {
+            out[cells.clone()].copy_from_slice(f);
+        }
+    }
+}
+
+/// A sink that turns each row's force straight into symplectic Euler's new state.
+struct SymplecticUpdate<'a, T> {
+    /// The band's first particle within the body.
+    offset: usize,
+    nx: usize,
+    x: [&'a [T]; 3],
+    v: [&'a [T]; 3],
+    masses: &'a [T],
+    inverse_masses: &'a [T],
+    gravity: [T; 3],
+    drag: T,
+    h: T,
+    /// The band's new positions and velocities.
+    positions: [&'a mut [T]; 3],
+    velocities: [&'a mut [T]; 3],
+    sums: (T, T),
+}
+
+impl<T: Real> RowSink<T> for SymplecticUpdate<'_, T> {
+    fn start(&mut self, row: usize, force: [&mut [T]; 3]) {
+        let cells = self.offset + row * self.nx..self.offset + (row + 1) * self.nx;
+        let masses = &self.masses[cells.clone()];
+        for ((f, v), g) in force.into_iter().zip(self.v).zip(self.gravity) {
+            for ((f, &v), &m) in f.iter_mut().zip(&v[cells.clone()]).zip(masses) {
+                *f = (g - v * self.drag) * m;
+            }
+        }
+    }
+
+    fn finish(&mut self, row: usize, force: [&[T]; 3]) {
+        let local = row * self.nx..(row + 1) * self.nx;
+        let cells = self.offset + local.start..self.offset + local.end;
+        let inverse_masses = &self.inverse_masses[cells.clone()];
+        let h = self.h;
+        let old = self.x.iter().zip(self.v).zip(force);
+        for (((x, v), f), (new_x, new_v)) in
+            old.zip(self.positions.iter_mut().zip(self.velocities.iter_mut()))
+        {
+            let (x, v) = (&x[cells.clone()], &v[cells.clone()]);
+            let new = new_x[local.clone()].iter_mut().zip(&mut new_v[local.clone()]);
+            for (((new_x, new_v), (&x, &v)), (&f, &w)) in
+                new.zip(x.iter().zip(v)).zip(f.iter().zip(inverse_masses))
+            {
+                let velocity = v + f * w * h;
+                *new_v = velocity;
+                *new_x = x + velocity * h;
+            }
+        }
+        let [px, py, pz] = self.positions.each_ref().map(|axis| &axis[local.clone()]);
+        let [vx, vy, vz] = self.velocities.each_ref().map(|axis| &axis[local.clone()]);
+        let (kinetic, position) = lane_sums(&self.masses[cells], [vx, vy, vz], [px, py, pz]);
+        self.sums.0 += kinetic;
+        self.sums.1 += position;
+    }
+}
+
+/// `Σ m |v|²` and `Σ (x + y + z)` over a row, summed in eight interleaved lanes (so the loop
+/// vectorises) and then lane by lane: a fixed order, hence deterministic.
+#[inline]
+fn lane_sums<T: Real>(masses: &[T], v: [&[T]; 3], x: [&[T]; 3]) -> (T, T) {
+    let n = masses.len();
+    let [vx, vy, vz] = v.map(|axis| &axis[..n]);
+    let [px, py, pz] = x.map(|axis| &axis[..n]);
+    let mut kinetic = [T::ZERO; LANES];
+    let mut position = [T::ZERO; LANES];
+    let full = n - n % LANES;
+    for start in (0..full).step_by(LANES) {
+        for lane in 0..LANES {
+            let k = start + lane;
+            kinetic[lane] += masses[k] * (vx[k] * vx[k] + vy[k] * vy[k] + vz[k] * vz[k]);
+            position[lane] += px[k] + py[k] + pz[k];
+        }
+    }
+    for k in full..n {
+        kinetic[0] += masses[k] * (vx[k] * vx[k] + vy[k] * vy[k] + vz[k] * vz[k]);
+        position[0] += px[k] + py[k] + pz[k];
+    }
+    (kinetic.into_iter().fold(T::ZERO, |s, k| s + k), position.into_iter().fold(T::ZERO, |s, p| s + p))
+}
+
 /// The grid records of a model whose springs this module can evaluate.
 pub(crate) fn grids<T: Real>(model: &Model, springs: &[Spring<T>]) -> Vec<GridSprings<T>> {
     model.grids.iter().filter_map(|g| GridSprings::new(g, springs)).collect()
@@ -285,9 +591,9 @@ mod tests {
     use super::super::springs;
     use super::*;
 
-    /// A 13 × 5 cloth (13 is not a multiple of the block width, so the tail loop runs too) with
+    /// A 13 × 5 cloth (13 is not a multiple of the vector width, so the tail loops run too) with
     /// springs of three different parameter sets, bent and moving so every spring is loaded.
-    fn moving_cloth() -> (Model, Vec<Vec3<f64>>, Vec<Vec3<f64>>) {
+    fn moving_cloth() -> (Model, Vectors<f64>, Vectors<f64>) {
         let mut model = Model::default();
         model.add_cloth(&Cloth {
             size: [1.2, 0.4],
@@ -320,14 +626,76 @@ mod tests {
         let springs: Vec<Spring<f64>> = model.springs.clone();
         let mut grid = GridSprings::new(&model.grids[0], &springs).expect("a builder's cloth is a grid");
         assert_eq!(grid.springs(), 0..springs.len());
-        let mut by_stencil = vec![Vec3::ZERO; x.len()];
-        let mut by_list = vec![Vec3::ZERO; x.len()];
-        grid.add_forces(&x, &v, &vec![1.0; x.len()], &mut by_stencil);
+        let mut by_stencil = Vectors::zeros(x.len());
+        let mut by_list = Vectors::zeros(x.len());
+        grid.add_forces(&x, &v, &mut by_stencil);
         springs::add_forces(&springs, &x, &v, &mut by_list);
         let largest = by_list.iter().map(|f| f.length()).fold(0.0, f64::max);
         assert!(largest > 1.0, "the springs are loaded: {largest}");
-        for (a, b) in by_stencil.iter().zip(&by_list) {
-            assert!((*a - *b).length() <= 1e-12 * largest, "{a:?} against {b:?}");
+        for (a, b) in by_stencil.iter().zip(by_list.iter()) {
+            assert!((a - b).length() <= 1e-12 * largest, "{a:?} against {b:?}");
+        }
+    }
+
+    /// The same grid cut into `count` bands.
+    fn banded(model: &Model, count: usize) -> GridSprings<f64> {
+        let grid = GridSprings::new(&model.grids[0], &model.springs).expect("a builder's cloth is a grid");
+        GridSprings::with_bands(grid.first, grid.springs.clone(), grid.layout, count)
+    }
+
+    #[test]
+    fn forces_do_not_depend_on_the_number_of_bands() {
+        let (model, x, v) = moving_cloth();
+        let forces = |count: usize| {
+            let mut grid = banded(&model, count);
+            assert_eq!(
+                grid.bands.len(),
+                5usize.div_ceil(5usize.div_ceil(count)),
+                "rows are shared out evenly"
+            );
+            let mut forces: Vectors<f64> = (0..x.len()).map(|p| Vec3::new(p as f64, -1.0, 0.5)).collect();
+            grid.add_forces(&x, &v, &mut forces);
+            forces
+        };
+        let one = forces(1);
+        assert!(one.iter().any(|f| f.length() > 1.0));
+        for count in 2..=5 {
+            assert_eq!(forces(count), one, "{count} bands");
+        }
+    }
+
+    #[test]
+    fn symplectic_steps_do_not_depend_on_the_number_of_bands() {
+        let (model, x, v) = moving_cloth();
+        let n = x.len();
+        let masses: Vec<f64> = (0..n).map(|p| 0.01 + 0.001 * p as f64).collect();
+        let inverse_masses: Vec<f64> =
+            masses.iter().enumerate().map(|(p, m)| if p == 3 { 0.0 } else { 1.0 / m }).collect();
+        let inputs = SymplecticInputs {
+            masses: &masses,
+            inverse_masses: &inverse_masses,
+            gravity: Vec3::new(0.0, -9.81, 0.0),
+            drag: 0.3,
+            h: 1e-4,
+        };
+        let step = |count: usize| {
+            let mut grid = banded(&model, count);
+            let state = State { positions: x.clone(), velocities: v.clone() };
+            let mut next = State { positions: Vectors::zeros(n), velocities: Vectors::zeros(n) };
+            let sums = grid.symplectic_step(&inputs, &state, &mut next);
+            (next.positions, next.velocities, sums)
+        };
+        let (x1, v1, sums) = step(1);
+        assert_eq!(
+            x1.get(3),
+            x.get(3) + v.get(3) * 1e-4,
+            "a pinned particle drifts with its own velocity only"
+        );
+        let kinetic: f64 = masses.iter().zip(v1.iter()).map(|(m, v)| m * v.length_squared()).sum();
+        assert!((sums.0 - kinetic).abs() < 1e-12 * kinetic, "{} against {kinetic}", sums.0);
+        for count in 2..=5 {
+            let (xs, vs, _) = step(count);
+            assert_eq!((&xs, &vs), (&x1, &v1), "{count} bands");
         }
     }
 
@@ -358,11 +726,11 @@ mod tests {
             listed.step().expect("stable");
         }
         let (a, b) = (fused.state(), listed.state());
-        assert_eq!(a.positions[0], b.positions[0], "the pin holds");
-        let moved = (a.positions[40] - Vec3::from_dvec3(model.positions[40])).length();
+        assert_eq!(a.positions.get(0), b.positions.get(0), "the pin holds");
+        let moved = (a.positions.get(40) - Vec3::from_dvec3(model.positions[40])).length();
         assert!(moved > 1e-3, "the cloth moved {moved} m");
-        for (p, q) in a.positions.iter().zip(&b.positions) {
-            assert!((*p - *q).length() < 1e-9, "{p:?} against {q:?}");
+        for (p, q) in a.positions.iter().zip(b.positions.iter()) {
+            assert!((p - q).length() < 1e-9, "{p:?} against {q:?}");
         }
         assert!((fused.energy().kinetic - listed.energy().kinetic).abs() < 1e-9);
     }
@@ -397,7 +765,7 @@ mod tests {
         for _ in 0..10_000 {
             simulation.step().expect("stable at the peers' step");
         }
-        let y = |i: usize, j: usize| simulation.state().positions[j * n + i].y.to_f64();
+        let y = |i: usize, j: usize| simulation.state().positions.get(j * n + i).y.to_f64();
         (y(n / 2, n / 2), y(0, n - 1))
     }
 

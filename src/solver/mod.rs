@@ -14,6 +14,7 @@ mod grid_springs;
 mod integrators;
 mod model;
 mod normals;
+pub mod parallel;
 mod real;
 mod self_collision;
 mod simulation;
@@ -23,6 +24,7 @@ mod state;
 mod strain_limit;
 mod sym3;
 mod vec3;
+mod vectors;
 mod wind;
 
 #[cfg(test)]
@@ -40,4 +42,5 @@ pub use simulation::{Config, STAGE_NAMES, Simulation};
 pub use stability::{Divergence, DivergenceReason, stable_step};
 pub use state::State;
 pub use vec3::Vec3;
+pub use vectors::Vectors;
 pub use wind::{Gust, WindConfig, WindModel};

@@ -17,7 +17,7 @@
 #![allow(clippy::neg_cmp_op_on_partial_ord, reason = "written so that a NaN fails each test")]
 
 use super::model::Model;
-use super::{Real, State, Vec3};
+use super::{Real, State, Vec3, Vectors};
 
 /// The self-collision stage with its hash and scratch, allocated once.
 #[derive(Clone, Debug)]
@@ -86,9 +86,9 @@ impl<T: Real> SelfCollision<T> {
     }
 
     /// Counting-sorts the particles into the hash buckets of their cells.
-    fn build(&mut self, x: &[Vec3<T>]) {
+    fn build(&mut self, x: &Vectors<T>) {
         self.bucket_start.fill(0);
-        for (p, &position) in x.iter().enumerate() {
+        for (p, position) in x.iter().enumerate() {
             let b = self.bucket(self.cell(position));
             self.bucket_of[p] = b as u32;
             self.bucket_start[b + 1] += 1;
@@ -116,7 +116,7 @@ impl<T: Real> SelfCollision<T> {
         let limit2 = self.distance * self.distance;
         let mut moved = false;
         for p in 0..x.len() {
-            let [ci, cj, ck] = self.cell(x[p]);
+            let [ci, cj, ck] = self.cell(x.get(p));
             for di in -1..=1 {
                 for dj in -1..=1 {
                     for dk in -1..=1 {
@@ -127,7 +127,7 @@ impl<T: Real> SelfCollision<T> {
                             if q as usize <= p {
                                 continue;
                             }
-                            let d = x[q as usize] - x[p];
+                            let d = x.get(q as usize) - x.get(p);
                             let d2 = d.length_squared();
                             if !(d2 < limit2) || self.joined(p, q) {
                                 continue;
@@ -144,13 +144,13 @@ impl<T: Real> SelfCollision<T> {
                                 Vec3::new(T::ZERO, T::ONE, T::ZERO)
                             };
                             let push = n * ((self.distance - length) / w);
-                            x[p] -= push * wp;
-                            x[q as usize] += push * wq;
-                            let closing = (v[q as usize] - v[p]).dot(n);
+                            x.sub(p, push * wp);
+                            x.add(q as usize, push * wq);
+                            let closing = (v.get(q as usize) - v.get(p)).dot(n);
                             if closing < T::ZERO {
                                 let impulse = n * (closing / w);
-                                v[p] += impulse * wp;
-                                v[q as usize] -= impulse * wq;
+                                v.add(p, impulse * wp);
+                                v.sub(q as usize, impulse * wq);
                             }
                             moved = true;
                         }
@@ -192,12 +192,12 @@ mod tests {
         let mut stage = SelfCollision::<f64>::new(&m, 0.005);
         let before = s.positions.clone();
         assert!(stage.resolve(&mut s, &[1.0, 1.0, 1.0, 1.0]));
-        assert_eq!(s.positions[0], before[0]);
-        assert_eq!(s.positions[3], before[3]);
-        let gap = s.positions[2].x - s.positions[1].x;
+        assert_eq!(s.positions.get(0), before.get(0));
+        assert_eq!(s.positions.get(3), before.get(3));
+        let gap = s.positions.get(2).x - s.positions.get(1).x;
         assert!((gap - 0.01).abs() < 1e-15, "{gap}");
         // Equal masses: both moved by half and the approach (-2 m/s) is gone, momentum kept.
-        assert!((s.velocities[1].x - 0.0).abs() < 1e-15 && (s.velocities[2].x - 0.0).abs() < 1e-15);
+        assert!((s.velocities.get(1).x - 0.0).abs() < 1e-15 && (s.velocities.get(2).x - 0.0).abs() < 1e-15);
     }
 
     #[test]
@@ -206,8 +206,8 @@ mod tests {
         let mut s = state(&m, &[0.0, 0.0, 0.0]);
         let mut stage = SelfCollision::<f64>::new(&m, 0.01);
         assert!(stage.resolve(&mut s, &[1.0, 0.0, 1.0]));
-        assert_eq!(s.positions[1], Vec3::new(5.0, 0.0, 0.0));
-        assert_eq!(s.positions[2], Vec3::new(5.0, 0.02, 0.0));
+        assert_eq!(s.positions.get(1), Vec3::new(5.0, 0.0, 0.0));
+        assert_eq!(s.positions.get(2), Vec3::new(5.0, 0.02, 0.0));
         assert!(s.positions.iter().all(|p| p.is_finite()));
     }
 
@@ -237,7 +237,7 @@ mod tests {
         }
         for p in 0..200usize {
             for q in p + 2..200 {
-                let d = (s.positions[q] - s.positions[p]).length();
+                let d = (s.positions.get(q) - s.positions.get(p)).length();
                 assert!(d > 0.002, "{p} and {q} are {d} apart");
             }
         }

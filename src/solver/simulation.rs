@@ -179,8 +179,12 @@ impl<T: Real> Simulation<T> {
         let (twice_kinetic, position_sum) = sums.unwrap_or_else(|| {
             let mut twice_kinetic = T::ZERO;
             let mut position_sum = T::ZERO;
-            let particles =
-                self.dynamics.masses.iter().zip(&self.state.velocities).zip(&self.state.positions);
+            let particles = self
+                .dynamics
+                .masses
+                .iter()
+                .zip(self.state.velocities.iter())
+                .zip(self.state.positions.iter());
             for ((&m, v), x) in particles {
                 twice_kinetic += m * v.length_squared();
                 position_sum += x.x + x.y + x.z;

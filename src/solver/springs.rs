@@ -6,7 +6,7 @@
 
 use super::model::Spring;
 use super::sym3::Sym3;
-use super::{Real, Vec3};
+use super::{Real, Vec3, Vectors};
 
 /// The unit direction from `i` to `j` and the distance, or `None` when they coincide.
 #[inline(always)]
@@ -22,14 +22,14 @@ pub(crate) fn direction<T: Real>(d: Vec3<T>) -> Option<(Vec3<T>, T)> {
 }
 
 /// Adds every spring's force to `forces`.
-pub fn add_forces<T: Real>(springs: &[Spring<T>], x: &[Vec3<T>], v: &[Vec3<T>], forces: &mut [Vec3<T>]) {
+pub fn add_forces<T: Real>(springs: &[Spring<T>], x: &Vectors<T>, v: &Vectors<T>, forces: &mut Vectors<T>) {
     for s in springs {
         let (i, j) = (s.i as usize, s.j as usize);
-        let Some((n, l)) = direction(x[j] - x[i]) else { continue };
-        let magnitude = s.stiffness * (l - s.rest_length) + s.damping * (v[j] - v[i]).dot(n);
+        let Some((n, l)) = direction(x.get(j) - x.get(i)) else { continue };
+        let magnitude = s.stiffness * (l - s.rest_length) + s.damping * (v.get(j) - v.get(i)).dot(n);
         let f = n * magnitude;
-        forces[i] += f;
-        forces[j] -= f;
+        forces.add(i, f);
+        forces.sub(j, f);
     }
 }
 
@@ -44,11 +44,11 @@ pub(crate) fn stiffness_block<T: Real>(s: &Spring<T>, n: Vec3<T>, l: T) -> Sym3<
 }
 
 /// Elastic energy stored in the springs, in joules.
-pub fn energy<T: Real>(springs: &[Spring<T>], x: &[Vec3<T>]) -> f64 {
+pub fn energy<T: Real>(springs: &[Spring<T>], x: &Vectors<T>) -> f64 {
     springs
         .iter()
         .map(|s| {
-            let l = (x[s.j as usize] - x[s.i as usize]).to_dvec3().length();
+            let l = (x.get(s.j as usize) - x.get(s.i as usize)).to_dvec3().length();
             let stretch = l - s.rest_length.to_f64();
             0.5 * s.stiffness.to_f64() * stretch * stretch
         })
@@ -57,16 +57,16 @@ pub fn energy<T: Real>(springs: &[Spring<T>], x: &[Vec3<T>]) -> f64 {
 
 /// Engineering strain `(l - L) / L` of one spring; zero for a spring of zero rest length.
 #[inline]
-pub fn strain<T: Real>(s: &Spring<T>, x: &[Vec3<T>]) -> f64 {
+pub fn strain<T: Real>(s: &Spring<T>, x: &Vectors<T>) -> f64 {
     let rest = s.rest_length.to_f64();
     if rest <= 0.0 {
         return 0.0;
     }
-    let l = (x[s.j as usize] - x[s.i as usize]).to_dvec3().length();
+    let l = (x.get(s.j as usize) - x.get(s.i as usize)).to_dvec3().length();
     (l - rest) / rest
 }
 
 /// The largest strain over all springs (negative if every spring is compressed), or 0 with none.
-pub fn max_strain<T: Real>(springs: &[Spring<T>], x: &[Vec3<T>]) -> f64 {
+pub fn max_strain<T: Real>(springs: &[Spring<T>], x: &Vectors<T>) -> f64 {
     springs.iter().map(|s| strain(s, x)).reduce(f64::max).unwrap_or(0.0)
 }

@@ -1,14 +1,14 @@
 //! Where the particles are and how fast they move: the part of a simulation that a step changes.
 
-use super::{Real, Vec3};
+use super::{Real, Vectors};
 
-/// Positions and velocities, one entry per particle, as parallel arrays.
+/// Positions and velocities, one entry per particle, each stored one array per axis.
 #[derive(Clone, Debug, Default)]
 pub struct State<T> {
     /// Positions, in metres.
-    pub positions: Vec<Vec3<T>>,
+    pub positions: Vectors<T>,
     /// Velocities, in m/s.
-    pub velocities: Vec<Vec3<T>>,
+    pub velocities: Vectors<T>,
 }
 
 impl<T: Real> State<T> {

@@ -21,7 +21,7 @@
 
 use super::contacts::Contacts;
 use super::model::Spring;
-use super::{Real, State, Vec3};
+use super::{Real, State, Vec3, Vectors};
 
 /// The relative excess over the limit a converged sweep tolerates.
 pub const TOLERANCE: f64 = 1e-9;
@@ -35,14 +35,14 @@ pub(crate) struct StrainLimit<T> {
     /// `1 + limit`.
     stretch: T,
     /// How far the springs moved each particle in this pass.
-    shift: Vec<Vec3<T>>,
+    shift: Vectors<T>,
     /// Sweeps of the last pass.
     last_sweeps: usize,
 }
 
 impl<T: Real> StrainLimit<T> {
     pub fn new(limit: f64, particles: usize) -> Self {
-        Self { stretch: T::from_f64(1.0 + limit), shift: vec![Vec3::ZERO; particles], last_sweeps: 0 }
+        Self { stretch: T::from_f64(1.0 + limit), shift: Vectors::zeros(particles), last_sweeps: 0 }
     }
 
     /// Sweeps of the last pass (zero when no spring was too long).
@@ -78,7 +78,7 @@ impl<T: Real> StrainLimit<T> {
                 let (wi, wj) = (inverse_masses[i], inverse_masses[j]);
                 let w = wi + wj;
                 let longest = s.rest_length * self.stretch;
-                let d = x[j] - x[i];
+                let d = x.get(j) - x.get(i);
                 let length = d.length();
                 if !(length > longest) || w == T::ZERO {
                     continue;
@@ -90,10 +90,10 @@ impl<T: Real> StrainLimit<T> {
                 }
                 // length > longest ≥ 0, so the direction is defined.
                 let correction = d * ((length - longest) / (length * w));
-                x[i] += correction * wi;
-                x[j] -= correction * wj;
-                self.shift[i] += correction * wi;
-                self.shift[j] -= correction * wj;
+                x.add(i, correction * wi);
+                x.sub(j, correction * wj);
+                self.shift.add(i, correction * wi);
+                self.shift.sub(j, correction * wj);
             }
             self.last_sweeps += 1;
             if !(worst > tolerance) {
@@ -102,8 +102,10 @@ impl<T: Real> StrainLimit<T> {
         }
         if moved {
             let rate = T::ONE / h;
-            for (v, &shift) in state.velocities.iter_mut().zip(&self.shift) {
-                *v += shift * rate;
+            for (v, shift) in state.velocities.axes_mut().into_iter().zip(self.shift.axes()) {
+                for (v, &shift) in v.iter_mut().zip(shift) {
+                    *v += shift * rate;
+                }
             }
         }
         moved
@@ -120,8 +122,8 @@ mod tests {
     }
 
     fn state(x: Vec<Vec3<f64>>) -> State<f64> {
-        let velocities = vec![Vec3::ZERO; x.len()];
-        State { positions: x, velocities }
+        let velocities = Vectors::zeros(x.len());
+        State { positions: x.into_iter().collect(), velocities }
     }
 
     #[test]
@@ -131,10 +133,10 @@ mod tests {
         // Particle 1 is three times lighter (inverse mass 3): it moves three times as far.
         assert!(limit.apply(&mut s, &[spring(0, 1, 1.0)], &[1.0, 3.0], None, 0.5));
         let excess = 2.0 - 1.1;
-        assert!((s.positions[0].x - 0.25 * excess).abs() < 1e-12);
-        assert!((s.positions[1].x - (2.0 - 0.75 * excess)).abs() < 1e-12);
+        assert!((s.positions.get(0).x - 0.25 * excess).abs() < 1e-12);
+        assert!((s.positions.get(1).x - (2.0 - 0.75 * excess)).abs() < 1e-12);
         // The velocity is the displacement over the step.
-        assert!((s.velocities[1].x + 0.75 * excess / 0.5).abs() < 1e-12);
+        assert!((s.velocities.get(1).x + 0.75 * excess / 0.5).abs() < 1e-12);
     }
 
     #[test]
@@ -148,11 +150,11 @@ mod tests {
         w[0] = 0.0;
         let mut limit = StrainLimit::new(0.1, n);
         assert!(limit.apply(&mut s, &springs, &w, None, 0.01));
-        assert_eq!(s.positions[0], Vec3::ZERO);
+        assert_eq!(s.positions.get(0), Vec3::ZERO);
         let sweeps = limit.last_sweeps();
         assert!(sweeps > 1 && sweeps < MAX_SWEEPS, "{sweeps}");
         for sp in &springs {
-            let l = (s.positions[sp.j as usize] - s.positions[sp.i as usize]).length();
+            let l = (s.positions.get(sp.j as usize) - s.positions.get(sp.i as usize)).length();
             assert!(l <= 1.1 * (1.0 + 1e-6), "spring {}-{} is {l}", sp.i, sp.j);
         }
         // A second pass finds at most tolerance-sized remainders: one sweep.
@@ -166,7 +168,7 @@ mod tests {
         let mut s = state(x.clone());
         let mut limit = StrainLimit::new(0.1, 2);
         assert!(!limit.apply(&mut s, &[spring(0, 1, 1.0)], &[1.0, 1.0], None, 0.01));
-        assert_eq!(s.positions, x);
+        assert_eq!(s.positions, x.into_iter().collect());
     }
 
     /// A soft cloth hanging from two corners, with and without the limit.
@@ -210,7 +212,7 @@ mod tests {
         assert!(worst <= 0.1 * (1.0 + 1e-6), "strain reached {worst}");
         assert!(worst > 0.099, "the limit was never reached: {worst}");
         for p in [0, 11] {
-            assert_eq!(sim.state().positions[p].to_dvec3(), model.positions[p]);
+            assert_eq!(sim.state().positions.get(p).to_dvec3(), model.positions[p]);
         }
 
         let (model, config) = hanging(None);

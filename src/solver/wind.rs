@@ -17,7 +17,7 @@
 
 use glam::DVec3;
 
-use super::{Real, Vec3, normals};
+use super::{Real, Vec3, Vectors, normals};
 
 /// How wind turns into forces.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -144,14 +144,14 @@ impl<T: Real> Wind<T> {
     }
 
     /// Adds the wind force on every particle at state `(x, v)` and time `t`.
-    pub fn add_forces(&mut self, x: &[Vec3<T>], v: &[Vec3<T>], t: f64, forces: &mut [Vec3<T>]) {
+    pub fn add_forces(&mut self, x: &Vectors<T>, v: &Vectors<T>, t: f64, forces: &mut Vectors<T>) {
         match self.model {
             WindModel::Viscous => {
                 normals::vertex_normals(&self.triangles, x, &mut self.normals);
                 for p in 0..x.len() {
                     let n = self.normals[p];
-                    let relative = self.air(x[p], t) - v[p];
-                    forces[p] += n * (self.coefficient * n.dot(relative));
+                    let relative = self.air(x.get(p), t) - v.get(p);
+                    forces.add(p, n * (self.coefficient * n.dot(relative)));
                 }
             }
             WindModel::Aerodynamic => {
@@ -160,20 +160,21 @@ impl<T: Real> Wind<T> {
                 for &[a, b, c] in &self.triangles {
                     let (a, b, c) = (a as usize, b as usize, c as usize);
                     // |cross| is twice the area; cross / |cross| the unit normal.
-                    let cross = (x[b] - x[a]).cross(x[c] - x[a]);
+                    let (xa, xb, xc) = (x.get(a), x.get(b), x.get(c));
+                    let cross = (xb - xa).cross(xc - xa);
                     let twice_area = cross.length();
                     if !(twice_area > T::ZERO) {
                         continue;
                     }
-                    let centroid = (x[a] + x[b] + x[c]) * third;
-                    let mean_velocity = (v[a] + v[b] + v[c]) * third;
+                    let centroid = (xa + xb + xc) * third;
+                    let mean_velocity = (v.get(a) + v.get(b) + v.get(c)) * third;
                     let relative = self.air(centroid, t) - mean_velocity;
                     // c A (n·w) n = c (cross·w) cross / (2 |cross|).
                     let f = cross * (self.coefficient * cross.dot(relative) * half / twice_area);
                     let share = f * third;
-                    forces[a] += share;
-                    forces[b] += share;
-                    forces[c] += share;
+                    forces.add(a, share);
+                    forces.add(b, share);
+                    forces.add(c, share);
                 }
             }
         }
@@ -184,19 +185,21 @@ impl<T: Real> Wind<T> {
 mod tests {
     use super::*;
 
-    fn square() -> (Vec<Vec3<f64>>, Vec<[u32; 3]>) {
+    fn square() -> (Vectors<f64>, Vec<[u32; 3]>) {
         // A unit square in the x-y plane, facing +z.
-        let x = vec![
+        let x = [
             Vec3::new(0.0, 0.0, 0.0),
             Vec3::new(1.0, 0.0, 0.0),
             Vec3::new(0.0, 1.0, 0.0),
             Vec3::new(1.0, 1.0, 0.0),
-        ];
+        ]
+        .into_iter()
+        .collect();
         (x, vec![[0, 1, 2], [2, 1, 3]])
     }
 
-    fn total(forces: &[Vec3<f64>]) -> Vec3<f64> {
-        forces.iter().fold(Vec3::ZERO, |s, &f| s + f)
+    fn total(forces: &Vectors<f64>) -> Vec3<f64> {
+        forces.iter().fold(Vec3::ZERO, |s, f| s + f)
     }
 
     #[test]
@@ -209,8 +212,8 @@ mod tests {
             gust: None,
         };
         let mut wind = Wind::<f64>::new(&config, &triangles, 4);
-        let v = vec![Vec3::new(0.0, 0.0, 0.5); 4];
-        let mut forces = vec![Vec3::ZERO; 4];
+        let v = std::iter::repeat_n(Vec3::new(0.0, 0.0, 0.5), 4).collect();
+        let mut forces = Vectors::zeros(4);
         wind.add_forces(&x, &v, 0.0, &mut forces);
         // Area 1, normal +z, relative normal speed 2 - 0.5: only the z component survives.
         let f = total(&forces);
@@ -228,10 +231,10 @@ mod tests {
             gust: None,
         };
         let mut wind = Wind::<f64>::new(&config, &triangles, 4);
-        let v = vec![Vec3::ZERO; 4];
-        let mut forces = vec![Vec3::ZERO; 4];
+        let v = Vectors::zeros(4);
+        let mut forces = Vectors::zeros(4);
         wind.add_forces(&x, &v, 0.0, &mut forces);
-        for f in &forces {
+        for f in forces.iter() {
             assert!((f.z - 0.25 * -2.0).abs() < 1e-12 && f.x.abs() < 1e-12, "{f:?}");
         }
     }
@@ -247,26 +250,28 @@ mod tests {
             gust: Some(gust),
         };
         let mut wind = Wind::<f64>::new(&config, &triangles, 4);
-        let v = vec![Vec3::ZERO; 4];
-        let mut forces = vec![Vec3::ZERO; 4];
+        let v = Vectors::zeros(4);
+        let mut forces = Vectors::zeros(4);
         // At t = 1/16 s the phase 2π·2·t is π/4 at z = 0.
         let t = 1.0 / 16.0;
         wind.add_forces(&x, &v, t, &mut forces);
         let expected = 1.0 + 0.5 * (std::f64::consts::FRAC_PI_4).sin();
-        assert!((forces[0].z - expected).abs() < 1e-12, "{:?}", forces[0]);
+        assert!((forces.get(0).z - expected).abs() < 1e-12, "{:?}", forces.get(0));
         assert!((config.peak_speed() - 1.5).abs() < 1e-15);
     }
 
     #[test]
     fn collapsed_triangles_and_lone_vertices_feel_no_wind() {
-        let x = vec![Vec3::new(0.0, 0.0, 0.0), Vec3::new(1.0, 0.0, 0.0), Vec3::new(2.0, 0.0, 0.0)];
+        let x: Vectors<f64> = [Vec3::new(0.0, 0.0, 0.0), Vec3::new(1.0, 0.0, 0.0), Vec3::new(2.0, 0.0, 0.0)]
+            .into_iter()
+            .collect();
         for model in [WindModel::Viscous, WindModel::Aerodynamic] {
             let config =
                 WindConfig { model, velocity: DVec3::new(0.0, 4.0, 1.0), coefficient: 1.0, gust: None };
             let mut wind = Wind::<f64>::new(&config, &[[0, 1, 2]], 3);
-            let mut forces = vec![Vec3::ZERO; 3];
-            wind.add_forces(&x, &[Vec3::ZERO; 3], 0.0, &mut forces);
-            assert!(forces.iter().all(|f| *f == Vec3::ZERO), "{model:?}: {forces:?}");
+            let mut forces = Vectors::zeros(3);
+            wind.add_forces(&x, &Vectors::zeros(3), 0.0, &mut forces);
+            assert!(forces.iter().all(|f| f == Vec3::ZERO), "{model:?}: {forces:?}");
         }
     }
 

@@ -35,7 +35,7 @@ mod tests;
 
 use glam::DVec3;
 
-use super::{Real, State, Vec3};
+use super::{Real, State, Vec3, Vectors};
 
 /// The friction coefficient a collider has when the scene gives none.
 pub const DEFAULT_FRICTION: f64 = 0.3;
@@ -181,7 +181,7 @@ struct ColliderIn<T> {
 #[derive(Clone, Debug)]
 pub(crate) struct Contacts<T> {
     colliders: Vec<ColliderIn<T>>,
-    start: Vec<Vec3<T>>,
+    start: Vectors<T>,
 }
 
 impl<T: Real> Contacts<T> {
@@ -198,24 +198,24 @@ impl<T: Real> Contacts<T> {
                 restitution: T::from_f64(c.restitution),
             })
             .collect();
-        Some(Self { colliders, start: vec![Vec3::ZERO; particles] })
+        Some(Self { colliders, start: Vectors::zeros(particles) })
     }
 
     /// Remembers where the particles are before a step moves them.
-    pub fn begin_step(&mut self, positions: &[Vec3<T>]) {
-        self.start.copy_from_slice(positions);
+    pub fn begin_step(&mut self, positions: &Vectors<T>) {
+        self.start.copy_from(positions);
     }
 
     /// Moves free particles that are inside a collider out onto its surface, leaving velocities
     /// alone: for a state that starts inside, and within the strain limit's sweeps.
-    pub fn project_out(&self, positions: &mut [Vec3<T>], inverse_masses: &[T]) {
-        for (x, &w) in positions.iter_mut().zip(inverse_masses) {
+    pub fn project_out(&self, positions: &mut Vectors<T>, inverse_masses: &[T]) {
+        for (p, &w) in inverse_masses.iter().enumerate() {
             if w == T::ZERO {
                 continue;
             }
             for c in &self.colliders {
-                if let Some(surface) = c.shape.inside(*x) {
-                    *x = surface.point;
+                if let Some(surface) = c.shape.inside(positions.get(p)) {
+                    positions.set(p, surface.point);
                 }
             }
         }
@@ -225,16 +225,17 @@ impl<T: Real> Contacts<T> {
     /// [`begin_step`](Self::begin_step) to `state`. Returns whether any particle was touched.
     pub fn resolve(&self, state: &mut State<T>, inverse_masses: &[T]) -> bool {
         let mut touched = false;
-        for (((x, v), &start), &w) in
-            state.positions.iter_mut().zip(&mut state.velocities).zip(&self.start).zip(inverse_masses)
-        {
+        for (p, &w) in inverse_masses.iter().enumerate() {
             if w == T::ZERO {
                 continue;
             }
+            let start = self.start.get(p);
             for c in &self.colliders {
-                if let Some(surface) = c.shape.contact(start, *x) {
-                    *x = surface.point;
-                    respond(v, surface.normal, c.friction, c.restitution);
+                if let Some(surface) = c.shape.contact(start, state.positions.get(p)) {
+                    state.positions.set(p, surface.point);
+                    let mut v = state.velocities.get(p);
+                    respond(&mut v, surface.normal, c.friction, c.restitution);
+                    state.velocities.set(p, v);
                     touched = true;
                 }
             }

@@ -32,7 +32,7 @@ fn a_dropped_particle_rebounds_to_restitution_squared_of_its_height() {
             let mut peak: f64 = 0.0;
             for _ in 0..13_000 {
                 sim.step().unwrap();
-                let (x, v) = (sim.state().positions[0], sim.state().velocities[0]);
+                let (x, v) = (sim.state().positions.get(0), sim.state().velocities.get(0));
                 assert!(x.y >= -1e-12, "{integrator:?} below the plane: {}", x.y);
                 bounced |= v.y > 0.0;
                 if bounced {
@@ -88,8 +88,8 @@ fn a_particle_at_100_m_s_stops_at_a_plane_and_at_a_sphere() {
     let mut sim =
         Simulation::<f64>::new(&model, &config(IntegratorKind::SymplecticEuler, dt, vec![plane(0.3, 0.0)]));
     sim.step().unwrap();
-    assert!(sim.state().positions[0].y.abs() < 1e-12, "{:?}", sim.state().positions[0]);
-    assert!(sim.state().velocities[0].y.abs() < 1e-12);
+    assert!(sim.state().positions.get(0).y.abs() < 1e-12, "{:?}", sim.state().positions.get(0));
+    assert!(sim.state().velocities.get(0).y.abs() < 1e-12);
 
     // Through a ball of radius 0.3 m in one step: it stops on the near side.
     let ball = Collider {
@@ -104,7 +104,7 @@ fn a_particle_at_100_m_s_stops_at_a_plane_and_at_a_sphere() {
             &Config { gravity: DVec3::ZERO, ..config(IntegratorKind::SymplecticEuler, dt, vec![ball]) },
         );
         sim.step().unwrap();
-        let x = sim.state().positions[0].to_dvec3();
+        let x = sim.state().positions.get(0).to_dvec3();
         assert!(x.x < 0.0, "went through to {x:?}");
         assert!((x.length() - 0.3).abs() < 1e-12, "{x:?}");
     }
@@ -120,7 +120,7 @@ fn all_shapes() -> Vec<Shape> {
 }
 
 /// A deterministic scatter of points and velocities around the origin.
-fn scatter(count: usize) -> (Vec<Vec3<f64>>, Vec<Vec3<f64>>) {
+fn scatter(count: usize) -> (Vectors<f64>, Vectors<f64>) {
     let mut seed = 0x2545_f491_4f6c_dd1d_u64;
     let mut next = move || {
         seed ^= seed << 13;
@@ -142,13 +142,13 @@ fn contacts_never_add_kinetic_energy_and_leave_no_particle_inside() {
             contacts.begin_step(&positions);
             let mut state = State { positions: positions.clone(), velocities: velocities.clone() };
             contacts.resolve(&mut state, &vec![1.0; positions.len()]);
-            for (p, (v0, v1)) in velocities.iter().zip(&state.velocities).enumerate() {
+            for (p, (v0, v1)) in velocities.iter().zip(state.velocities.iter()).enumerate() {
                 let (before, after) = (v0.length_squared(), v1.length_squared());
                 assert!(
                     after <= before * (1.0 + 1e-12),
                     "{shape:?} gained energy at {p}: {before} -> {after}"
                 );
-                let depth = shape.signed_distance(state.positions[p].to_dvec3());
+                let depth = shape.signed_distance(state.positions.get(p).to_dvec3());
                 assert!(depth > -1e-12, "{shape:?}: particle {p} still {depth} inside");
             }
         }
@@ -214,14 +214,14 @@ fn particles_that_start_inside_are_projected_out_and_pinned_ones_never_move() {
     model.pin(1);
     let sim =
         Simulation::<f64>::new(&model, &config(IntegratorKind::SymplecticEuler, 1e-3, vec![plane(0.3, 0.0)]));
-    assert_eq!(sim.state().positions[0], Vec3::new(0.0, 0.0, 0.0));
-    assert_eq!(sim.state().positions[1], Vec3::new(0.3, -0.2, 0.0));
+    assert_eq!(sim.state().positions.get(0), Vec3::new(0.0, 0.0, 0.0));
+    assert_eq!(sim.state().positions.get(1), Vec3::new(0.3, -0.2, 0.0));
     let mut sim = sim;
     for _ in 0..100 {
         sim.step().unwrap();
     }
-    assert_eq!(sim.state().positions[1], Vec3::new(0.3, -0.2, 0.0));
-    assert!(sim.state().positions[0].y.abs() < 1e-12);
+    assert_eq!(sim.state().positions.get(1), Vec3::new(0.3, -0.2, 0.0));
+    assert!(sim.state().positions.get(0).y.abs() < 1e-12);
 }
 
 #[test]
@@ -258,7 +258,7 @@ fn single_precision_contacts_hold_as_well() {
     );
     for _ in 0..2000 {
         sim.step().unwrap();
-        for x in &sim.state().positions {
+        for x in sim.state().positions.iter() {
             let x = x.to_dvec3();
             assert!(ball.shape.signed_distance(x) > -1e-6 && x.y > -1e-6, "{x:?}");
         }

@@ -16,7 +16,7 @@
 use super::super::dynamics::Dynamics;
 use super::super::springs::{direction, stiffness_block};
 use super::super::sym3::Sym3;
-use super::super::{Real, State, Vec3};
+use super::super::{Real, State, Vec3, Vectors};
 use super::IntegratorSettings;
 
 /// How the conjugate-gradient solves of a run went.
@@ -48,7 +48,7 @@ pub(crate) struct Implicit<T> {
     mass_diagonal: Vec<T>,
     /// Per particle: 1 for free, 0 for pinned (the filter).
     free: Vec<T>,
-    forces: Vec<Vec3<T>>,
+    forces: Vectors<T>,
     rhs: Vec<Vec3<T>>,
     /// The solution `Δv`, kept as the next step's starting guess.
     delta_v: Vec<Vec3<T>>,
@@ -71,7 +71,7 @@ impl<T: Real> Implicit<T> {
             preconditioner: vec![Sym3::ZERO; n],
             mass_diagonal: vec![T::ZERO; n],
             free,
-            forces: zeros(),
+            forces: Vectors::zeros(n),
             rhs: zeros(),
             delta_v: zeros(),
             residual: zeros(),
@@ -94,9 +94,10 @@ impl<T: Real> Implicit<T> {
     pub fn step(&mut self, state: &mut State<T>, dynamics: &mut Dynamics<T>, t: f64, h: T) {
         self.assemble(state, dynamics, t, h);
         self.solve(dynamics);
-        for ((x, v), &dv) in state.positions.iter_mut().zip(&mut state.velocities).zip(&self.delta_v) {
-            *v += dv;
-            *x += *v * h;
+        for (p, &dv) in self.delta_v.iter().enumerate() {
+            let v = state.velocities.get(p) + dv;
+            state.velocities.set(p, v);
+            state.positions.set(p, state.positions.get(p) + v * h);
         }
     }
 
@@ -109,18 +110,18 @@ impl<T: Real> Implicit<T> {
         let drag = dynamics.drag.unwrap_or(T::ZERO);
         for p in 0..x.len() {
             self.mass_diagonal[p] = dynamics.masses[p] * (T::ONE + h * drag);
-            self.rhs[p] = self.forces[p] * h;
+            self.rhs[p] = self.forces.get(p) * h;
             self.preconditioner[p] = Sym3::identity() * self.mass_diagonal[p];
         }
         for (s, block) in dynamics.springs.iter().zip(&mut self.blocks) {
             let (i, j) = (s.i as usize, s.j as usize);
-            let Some((n, l)) = direction(x[j] - x[i]) else {
+            let Some((n, l)) = direction(x.get(j) - x.get(i)) else {
                 *block = Sym3::ZERO;
                 continue;
             };
             let stiffness = stiffness_block(s, n, l);
             *block = Sym3::outer(n) * (h * s.damping) + stiffness * h2;
-            let pull = stiffness.apply(v[i] - v[j]) * h2;
+            let pull = stiffness.apply(v.get(i) - v.get(j)) * h2;
             self.rhs[i] -= pull;
             self.rhs[j] += pull;
             self.preconditioner[i] += *block;

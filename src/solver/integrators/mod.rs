@@ -99,7 +99,7 @@ impl<T: Real> Stepper<T> {
         let n = dynamics.masses.len();
         match kind {
             IntegratorKind::ExplicitEuler => Self::ExplicitEuler(euler::Euler::new(n)),
-            IntegratorKind::SymplecticEuler => Self::SymplecticEuler(euler::Euler::new(n)),
+            IntegratorKind::SymplecticEuler => Self::SymplecticEuler(euler::Euler::symplectic(dynamics)),
             IntegratorKind::Verlet => Self::Verlet(verlet::Verlet::new(n, settings.verlet_damping)),
             IntegratorKind::Rk4 => Self::Rk4(rk4::Rk4::new(n)),
             IntegratorKind::ImplicitEuler => Self::ImplicitEuler(implicit::Implicit::new(dynamics, settings)),
@@ -112,10 +112,7 @@ impl<T: Real> Stepper<T> {
     pub fn step(&mut self, state: &mut State<T>, dynamics: &mut Dynamics<T>, t: f64, h: T) -> Option<(T, T)> {
         match self {
             Self::ExplicitEuler(e) => e.explicit_step(state, dynamics, t, h),
-            Self::SymplecticEuler(e) => match dynamics.fused_symplectic_step(state, h) {
-                Some(sums) => return Some(sums),
-                None => e.symplectic_step(state, dynamics, t, h),
-            },
+            Self::SymplecticEuler(e) => return e.symplectic_step(state, dynamics, t, h),
             Self::Verlet(v) => v.step(state, dynamics, t, h),
             Self::Rk4(r) => r.step(state, dynamics, t, h),
             Self::ImplicitEuler(i) => i.step(state, dynamics, t, h),

@@ -2,61 +2,81 @@
 //! stages on the whole state.
 
 use super::super::dynamics::Dynamics;
-use super::super::{Real, State, Vec3};
+use super::super::{Real, State, Vectors};
 
 #[derive(Debug)]
 pub(crate) struct Rk4<T> {
     /// Trial state of the current stage.
-    trial_x: Vec<Vec3<T>>,
-    trial_v: Vec<Vec3<T>>,
+    trial: State<T>,
     /// Acceleration at the trial state.
-    accelerations: Vec<Vec3<T>>,
+    accelerations: Vectors<T>,
     /// Weighted sums `k1 + 2k2 + 2k3 + k4` for x and v.
-    sum_x: Vec<Vec3<T>>,
-    sum_v: Vec<Vec3<T>>,
+    sum_x: Vectors<T>,
+    sum_v: Vectors<T>,
 }
 
 impl<T: Real> Rk4<T> {
     pub fn new(particles: usize) -> Self {
-        let zeros = || vec![Vec3::ZERO; particles];
-        Self { trial_x: zeros(), trial_v: zeros(), accelerations: zeros(), sum_x: zeros(), sum_v: zeros() }
+        let zeros = || Vectors::zeros(particles);
+        Self {
+            trial: State { positions: zeros(), velocities: zeros() },
+            accelerations: zeros(),
+            sum_x: zeros(),
+            sum_v: zeros(),
+        }
     }
 
     pub fn step(&mut self, state: &mut State<T>, dynamics: &mut Dynamics<T>, t: f64, h: T) {
         let half = h * T::from_f64(0.5);
         let two = T::from_f64(2.0);
-        let (x0, v0) = (&state.positions, &state.velocities);
+        let Self { trial, accelerations, sum_x, sum_v } = self;
 
         // Stage 1 at the start of the step.
-        dynamics.accelerations(x0, v0, t, &mut self.accelerations);
-        for p in 0..x0.len() {
-            let a = self.accelerations[p];
-            self.sum_x[p] = v0[p];
-            self.sum_v[p] = a;
-            self.trial_x[p] = x0[p] + v0[p] * half;
-            self.trial_v[p] = v0[p] + a * half;
+        dynamics.accelerations(&state.positions, &state.velocities, t, accelerations);
+        for axis in 0..3 {
+            let (x0, v0, a) =
+                (state.positions.axis(axis), state.velocities.axis(axis), accelerations.axis(axis));
+            let (sum_x, sum_v) = (sum_x.axis_mut(axis), sum_v.axis_mut(axis));
+            let (trial_x, trial_v) = (trial.positions.axis_mut(axis), trial.velocities.axis_mut(axis));
+            for p in 0..x0.len() {
+                sum_x[p] = v0[p];
+                sum_v[p] = a[p];
+                trial_x[p] = x0[p] + v0[p] * half;
+                trial_v[p] = v0[p] + a[p] * half;
+            }
         }
         // Stages 2 and 3 at the midpoint; the trial state moves on to the next stage's.
         let midpoint = t + half.to_f64();
         for advance in [half, h] {
-            dynamics.accelerations(&self.trial_x, &self.trial_v, midpoint, &mut self.accelerations);
-            for p in 0..x0.len() {
-                let (v, a) = (self.trial_v[p], self.accelerations[p]);
-                self.sum_x[p] += v * two;
-                self.sum_v[p] += a * two;
-                self.trial_x[p] = x0[p] + v * advance;
-                self.trial_v[p] = v0[p] + a * advance;
+            dynamics.accelerations(&trial.positions, &trial.velocities, midpoint, accelerations);
+            for axis in 0..3 {
+                let (x0, v0, a) =
+                    (state.positions.axis(axis), state.velocities.axis(axis), accelerations.axis(axis));
+                let (sum_x, sum_v) = (sum_x.axis_mut(axis), sum_v.axis_mut(axis));
+                let (trial_x, trial_v) = (trial.positions.axis_mut(axis), trial.velocities.axis_mut(axis));
+                for p in 0..x0.len() {
+                    let v = trial_v[p];
+                    sum_x[p] += v * two;
+                    sum_v[p] += a[p] * two;
+                    trial_x[p] = x0[p] + v * advance;
+                    trial_v[p] = v0[p] + a[p] * advance;
+                }
             }
         }
         // Stage 4 at the end of the step.
         let end = t + h.to_f64();
-        dynamics.accelerations(&self.trial_x, &self.trial_v, end, &mut self.accelerations);
+        dynamics.accelerations(&trial.positions, &trial.velocities, end, accelerations);
         let sixth = h / T::from_f64(6.0);
-        for p in 0..x0.len() {
-            let kx = self.sum_x[p] + self.trial_v[p];
-            let kv = self.sum_v[p] + self.accelerations[p];
-            state.positions[p] += kx * sixth;
-            state.velocities[p] += kv * sixth;
+        for axis in 0..3 {
+            let (sum_x, sum_v, a) = (sum_x.axis(axis), sum_v.axis(axis), accelerations.axis(axis));
+            for ((x, &s), &v) in
+                state.positions.axis_mut(axis).iter_mut().zip(sum_x).zip(trial.velocities.axis(axis))
+            {
+                *x += (s + v) * sixth;
+            }
+            for ((v, &s), &a) in state.velocities.axis_mut(axis).iter_mut().zip(sum_v).zip(a) {
+                *v += (s + a) * sixth;
+            }
         }
     }
 }

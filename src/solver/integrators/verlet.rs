@@ -8,14 +8,14 @@
 //! forces see the predicted velocity `u + (h/2) a(x)` at the end of the step.
 
 use super::super::dynamics::Dynamics;
-use super::super::{Real, State, Vec3};
+use super::super::{Real, State, Vectors};
 
 #[derive(Debug)]
 pub(crate) struct Verlet<T> {
     /// Acceleration at the current state, valid when `primed`.
-    accelerations: Vec<Vec3<T>>,
+    accelerations: Vectors<T>,
     /// Drift velocity of the step under way (scratch).
-    drift: Vec<Vec3<T>>,
+    drift: Vectors<T>,
     /// `1 - d`.
     keep: T,
     primed: bool,
@@ -24,8 +24,8 @@ pub(crate) struct Verlet<T> {
 impl<T: Real> Verlet<T> {
     pub fn new(particles: usize, damping: f64) -> Self {
         Self {
-            accelerations: vec![Vec3::ZERO; particles],
-            drift: vec![Vec3::ZERO; particles],
+            accelerations: Vectors::zeros(particles),
+            drift: Vectors::zeros(particles),
             keep: T::from_f64(1.0 - damping),
             primed: false,
         }
@@ -41,22 +41,23 @@ impl<T: Real> Verlet<T> {
             dynamics.accelerations(&state.positions, &state.velocities, t, &mut self.accelerations);
         }
         let half = h * T::from_f64(0.5);
+        let keep = self.keep;
         // The previous drift velocity is v - (h/2) a; damp it and kick by a full step.
-        for (((x, v), u), &a) in state
-            .positions
-            .iter_mut()
-            .zip(&mut state.velocities)
-            .zip(&mut self.drift)
-            .zip(&self.accelerations)
-        {
-            *u = (*v - a * half) * self.keep + a * h;
-            *x += *u * h;
-            *v = *u + a * half;
+        let axes = state.positions.axes_mut().into_iter().zip(state.velocities.axes_mut());
+        for (((x, v), u), a) in axes.zip(self.drift.axes_mut()).zip(self.accelerations.axes()) {
+            for (((x, v), u), &a) in x.iter_mut().zip(v.iter_mut()).zip(u.iter_mut()).zip(a) {
+                *u = (*v - a * half) * keep + a * h;
+                *x += *u * h;
+                *v = *u + a * half;
+            }
         }
         let end = t + h.to_f64();
         dynamics.accelerations(&state.positions, &state.velocities, end, &mut self.accelerations);
-        for ((v, &u), &a) in state.velocities.iter_mut().zip(&self.drift).zip(&self.accelerations) {
-            *v = u + a * half;
+        let axes = state.velocities.axes_mut().into_iter().zip(self.drift.axes());
+        for ((v, u), a) in axes.zip(self.accelerations.axes()) {
+            for ((v, &u), &a) in v.iter_mut().zip(u).zip(a) {
+                *v = u + a * half;
+            }
         }
         self.primed = true;
     }

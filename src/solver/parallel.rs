@@ -1,0 +1,46 @@
+//! The solver's threads: one pool with a thread per core, and the rule for when a scene uses it.
+//!
+//! A large cloth's force pass is cut into bands of rows that threads of [`pool`] run side by side
+//! (see [`grid_springs`](super::grid_springs)). Each band recomputes the few rows of springs it
+//! shares with its neighbours instead of exchanging partial sums, so every particle's force is
+//! summed in the same order whatever the number of bands: a result does not depend on how many
+//! threads computed it. A scene too small to pay for the hand-off stays in one band.
+//!
+//! A run should execute inside the pool ([`install`]), so that handing a band to the other
+//! threads is a push onto a work-stealing deque rather than a wake-up. When every pool thread is
+//! busy with a run of its own (a service filling the cores with jobs), a run's bands are simply
+//! executed one after another by its own thread: the cores are never oversubscribed.
+
+use std::sync::OnceLock;
+
+/// The fewest particles a band is given: below about this many a band's work (some 20 µs) is not
+/// much larger than the cost of handing it to another thread.
+pub const MIN_PARTICLES_PER_BAND: usize = 2048;
+
+/// The solver's thread pool: one thread per available core.
+pub fn pool() -> &'static rayon::ThreadPool {
+    static POOL: OnceLock<rayon::ThreadPool> = OnceLock::new();
+    POOL.get_or_init(|| {
+        let threads = std::thread::available_parallelism().map_or(1, usize::from);
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .thread_name(|i| format!("drape-solver-{i}"))
+            .build()
+            .expect("the solver's threads can be started")
+    })
+}
+
+/// Runs `work` on a thread of the solver's pool and returns its result.
+pub fn install<R: Send>(work: impl FnOnce() -> R + Send) -> R {
+    pool().install(work)
+}
+
+/// How many bands of rows a grid of `rows` rows and `particles` particles is cut into: one per
+/// pool thread, as long as each band keeps at least [`MIN_PARTICLES_PER_BAND`] particles and
+/// `min_rows` rows.
+pub fn band_count(rows: usize, particles: usize, min_rows: usize) -> usize {
+    let threads = pool().current_num_threads();
+    let by_size = particles / MIN_PARTICLES_PER_BAND;
+    let by_rows = rows / min_rows.max(1);
+    threads.min(by_size).min(by_rows).max(1)
+}
