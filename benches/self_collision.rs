@@ -4,7 +4,7 @@
 //! particle from 32² to 128².
 
 use criterion::{BatchSize, BenchmarkId, Criterion, Throughput};
-use drape::solver::{Cloth, Model, Orientation, SelfCollision, SpringParams, State, Vec3};
+use drape::solver::{Cloth, Model, Orientation, SelfCollision, SpringParams, State, Vec3, Vectors};
 use glam::DVec3;
 
 /// A 1 m cloth of n × n particles folded in half along x = 0, the two layers 1.6 thickness apart.
@@ -32,7 +32,7 @@ fn folded_cloth(n: usize) -> (Model, State<f64>, f64) {
             Vec3::from_dvec3(folded)
         })
         .collect();
-    let state = State { positions, velocities: vec![Vec3::ZERO; model.particle_count()] };
+    let state = State { positions, velocities: Vectors::zeros(model.particle_count()) };
     (model, state, thickness)
 }
 
