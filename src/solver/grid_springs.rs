@@ -50,6 +50,14 @@ struct Layout<T> {
     reach: usize,
 }
 
+impl<T> Layout<T> {
+    /// The length of a row's force accumulator: a row, rounded up to whole vectors, with room for
+    /// a family's column offset.
+    fn stride(&self) -> usize {
+        self.nx.next_multiple_of(LANES) + LANES
+    }
+}
+
 /// A band of rows with its scratch.
 #[derive(Clone, Debug)]
 struct Band<T> {
@@ -101,6 +109,10 @@ impl<T: Real> GridSprings<T> {
         let mut next = springs.iter();
         for &offsets in &grid.stencil {
             let [ai, aj, bi, bj] = offsets;
+            // A row's accumulator has room for column offsets below one vector.
+            if ai.max(bi) >= LANES {
+                return None;
+            }
             let (reach_i, reach_j) = (ai.max(bi), aj.max(bj));
             let mut family: Option<Family<T>> = None;
             for j in 0..ny.saturating_sub(reach_j) {
@@ -143,8 +155,8 @@ impl<T: Real> GridSprings<T> {
         let bands = (0..ny.div_ceil(band_rows))
             .map(|b| Band {
                 rows: b * band_rows..((b + 1) * band_rows).min(layout.ny),
-                ring: std::array::from_fn(|_| vec![T::ZERO; (layout.reach + 1) * layout.nx]),
-                row_forces: std::array::from_fn(|_| vec![T::ZERO; layout.nx]),
+                ring: std::array::from_fn(|_| vec![T::ZERO; (layout.reach + 1) * layout.stride()]),
+                row_forces: std::array::from_fn(|_| vec![T::ZERO; layout.stride()]),
             })
             .collect();
         Self { first, springs, layout, band_rows, bands }
@@ -245,16 +257,20 @@ impl<T: Real> Band<T> {
     /// total force to `sink` as soon as it is complete.
     fn sweep(&mut self, layout: &Layout<T>, x: [&[T]; 3], v: [&[T]; 3], sink: &mut impl RowSink<T>) {
         let Layout { nx, ny, reach, .. } = *layout;
+        let stride = layout.stride();
         let (first, end) = (self.rows.start, self.rows.end);
         let owned = |row: usize| (first..end).contains(&row);
         let first_springs = first.saturating_sub(reach);
         for row in first..(first_springs + reach).min(end) {
-            sink.start(row - first, ring_row(&mut self.ring, row, reach, nx));
+            sink.start(row - first, ring_row(&mut self.ring, row, reach, stride).map(|axis| &mut axis[..nx]));
         }
         for j in first_springs..end {
             let entering = j + reach;
             if owned(entering) {
-                sink.start(entering - first, ring_row(&mut self.ring, entering, reach, nx));
+                sink.start(
+                    entering - first,
+                    ring_row(&mut self.ring, entering, reach, stride).map(|axis| &mut axis[..nx]),
+                );
             }
             for family in &layout.families {
                 let [ai, aj, bi, bj] = family.offsets;
@@ -263,20 +279,11 @@ impl<T: Real> Band<T> {
                     continue;
                 }
                 let len = nx - ai.max(bi);
-                let (p, q) = (row_a * nx + ai, row_b * nx + bi);
-                if owned(row_a) && owned(row_b) && row_a != row_b {
-                    // Two different accumulator rows: the springs add to both in one pass.
-                    let [a, b] = two_ring_rows(&mut self.ring, [row_a, row_b], reach, nx);
-                    let first_ends = a.map(|axis| &mut axis[ai..ai + len]);
-                    let second_ends = b.map(|axis| &mut axis[bi..bi + len]);
-                    spring_row(family, x, v, p, q, &mut AddAndSubtract { first_ends, second_ends });
-                    continue;
-                }
-                let forces = self.row_forces.each_mut().map(|axis| &mut axis[..len]);
-                spring_row(family, x, v, p, q, &mut Store(forces));
+                let ends = [row_a * nx + ai, row_b * nx + bi];
+                spring_row(family, x, v, ends, len, self.row_forces.each_mut().map(Vec::as_mut_slice));
                 for (row, start, sign) in [(row_a, ai, T::ONE), (row_b, bi, -T::ONE)] {
                     if owned(row) {
-                        let ring = ring_row(&mut self.ring, row, reach, nx);
+                        let ring = ring_row(&mut self.ring, row, reach, stride);
                         for (acc, f) in ring.into_iter().zip(&self.row_forces) {
                             for (a, &f) in acc[start..start + len].iter_mut().zip(&f[..len]) {
                                 *a += sign * f;
@@ -287,7 +294,10 @@ impl<T: Real> Band<T> {
             }
             if j >= first {
                 let slot = j % (reach + 1);
-                sink.finish(j - first, self.ring.each_ref().map(|axis| &axis[slot * nx..(slot + 1) * nx]));
+                sink.finish(
+                    j - first,
+                    self.ring.each_ref().map(|axis| &axis[slot * stride..slot * stride + nx]),
+                );
             }
         }
     }
@@ -295,167 +305,49 @@ impl<T: Real> Band<T> {
 
 /// The accumulator of `row`, per axis.
 #[inline]
-fn ring_row<T>(ring: &mut [Vec<T>; 3], row: usize, reach: usize, nx: usize) -> [&mut [T]; 3] {
+fn ring_row<T>(ring: &mut [Vec<T>; 3], row: usize, reach: usize, stride: usize) -> [&mut [T]; 3] {
     let slot = row % (reach + 1);
-    ring.each_mut().map(|axis| &mut axis[slot * nx..(slot + 1) * nx])
-}
-
-/// The accumulators of two different rows, per axis.
-#[inline]
-fn two_ring_rows<T>(ring: &mut [Vec<T>; 3], rows: [usize; 2], reach: usize, nx: usize) -> [[&mut [T]; 3]; 2] {
-    let [a, b] = rows.map(|row| row % (reach + 1) * nx);
-    let [(ax, bx), (ay, by), (az, bz)] = ring.each_mut().map(|axis| two_rows(axis, a, b, nx));
-    [[ax, ay, az], [bx, by, bz]]
-}
-
-/// The `nx` values from `a` and from `b` (`a != b`, the two runs apart).
-#[inline]
-fn two_rows<T>(axis: &mut [T], a: usize, b: usize, nx: usize) -> (&mut [T], &mut [T]) {
-    let (low, high) = axis.split_at_mut(a.max(b));
-    let (first, second) = (&mut low[a.min(b)..a.min(b) + nx], &mut high[..nx]);
-    if a < b { (first, second) } else { (second, first) }
+    ring.each_mut().map(|axis| &mut axis[slot * stride..(slot + 1) * stride])
 }
 
 /// The most bands a grid is cut into: more than the cores of any machine this runs on would
 /// only add recomputed rows.
 const MAX_BANDS: usize = 64;
 
-/// Springs evaluated side by side: a row is evaluated in blocks of this many, copied into local
-/// arrays, which the compiler turns into vector instructions without having to prove that inputs
-/// and outputs do not overlap (eight `f32` fill an AVX2 register). A row's last, partial block is
-/// padded with coincident ends, whose force is zero, and only its real springs are handed on.
+/// The vector width the row loops are padded to: eight `f32` fill an AVX2 register.
 const LANES: usize = 8;
 
-/// One block's forces on the first ends, per axis.
-type Block<T> = [[T; LANES]; 3];
-
-/// Where a row of spring forces goes, block by block.
-trait SpringOutput<T> {
-    /// The number of springs.
-    fn len(&self) -> usize;
-    /// Takes the forces of springs `start..start + LANES`.
-    fn put(&mut self, start: usize, block: &Block<T>);
-    /// Takes the forces of springs `start..start + count` (`count < LANES`), the first `count`
-    /// lanes of `block`.
-    fn put_partial(&mut self, start: usize, count: usize, block: &Block<T>);
-}
-
-/// Writes the forces, per axis.
-struct Store<'a, T>([&'a mut [T]; 3]);
-
-impl<T: Real> SpringOutput<T> for Store<'_, T> {
-    #[inline(always)]
-    fn len(&self) -> usize {
-        self.0[0].len()
-    }
-
-    #[inline(always)]
-    fn put(&mut self, start: usize, block: &Block<T>) {
-        for (axis, lanes) in self.0.iter_mut().zip(block) {
-            axis[start..start + LANES].copy_from_slice(lanes);
-        }
-    }
-
-    #[inline(always)]
-    fn put_partial(&mut self, start: usize, count: usize, block: &Block<T>) {
-        for (axis, lanes) in self.0.iter_mut().zip(block) {
-            axis[start..start + count].copy_from_slice(&lanes[..count]);
-        }
-    }
-}
-
-/// Adds each force to the first ends' accumulators and subtracts it from the second ends'.
-struct AddAndSubtract<'a, T> {
-    first_ends: [&'a mut [T]; 3],
-    second_ends: [&'a mut [T]; 3],
-}
-
-impl<T: Real> SpringOutput<T> for AddAndSubtract<'_, T> {
-    #[inline(always)]
-    fn len(&self) -> usize {
-        self.first_ends[0].len()
-    }
-
-    #[inline(always)]
-    fn put(&mut self, start: usize, block: &Block<T>) {
-        for ((a, b), lanes) in self.first_ends.iter_mut().zip(&mut self.second_ends).zip(block) {
-            let a: &mut [T; LANES] = (&mut a[start..start + LANES]).try_into().expect("a whole block");
-            for (a, &f) in a.iter_mut().zip(lanes) {
-                *a += f;
-            }
-            let b: &mut [T; LANES] = (&mut b[start..start + LANES]).try_into().expect("a whole block");
-            for (b, &f) in b.iter_mut().zip(lanes) {
-                *b -= f;
-            }
-        }
-    }
-
-    #[inline(always)]
-    fn put_partial(&mut self, start: usize, count: usize, block: &Block<T>) {
-        for ((a, b), lanes) in self.first_ends.iter_mut().zip(&mut self.second_ends).zip(block) {
-            for (a, &f) in a[start..start + count].iter_mut().zip(lanes) {
-                *a += f;
-            }
-            for (b, &f) in b[start..start + count].iter_mut().zip(lanes) {
-                *b -= f;
-            }
-        }
-    }
-}
-
-/// Evaluates the springs of one family along a row, from particles `p..` to `q..`, one per
-/// place of `out`.
+/// Evaluates the `len` springs of one family along a row, from particles `p..` to `q..`, writing
+/// each force on its first end into `forces` (per axis, with room for `len` rounded up to
+/// [`LANES`]).
+///
+/// The loop runs over whole vectors: past the row's last spring it reads on into the next
+/// particles and hands on an exact zero instead of their force, so that no spring is left to a
+/// scalar remainder loop eight times slower. Only at the very end of the arrays, where there is
+/// nothing to read on into, does the loop stop at `len`.
 #[inline]
 fn spring_row<T: Real>(
     family: &Family<T>,
     x: [&[T]; 3],
     v: [&[T]; 3],
-    p: usize,
-    q: usize,
-    out: &mut impl SpringOutput<T>,
+    [p, q]: [usize; 2],
+    len: usize,
+    forces: [&mut [T]; 3],
 ) {
-    let len = out.len();
-    let mut start = 0;
-    while start + LANES <= len {
-        let a = load_block(x, v, p + start, LANES);
-        let b = load_block(x, v, q + start, LANES);
-        out.put(start, &spring_block(family, &a, &b));
-        start += LANES;
+    let padded = len.next_multiple_of(LANES);
+    let count = if p.max(q) + padded <= x[0].len() { padded } else { len };
+    let [xa, ya, za] = x.map(|axis| &axis[p..p + count]);
+    let [xb, yb, zb] = x.map(|axis| &axis[q..q + count]);
+    let [ua, va, wa] = v.map(|axis| &axis[p..p + count]);
+    let [ub, vb, wb] = v.map(|axis| &axis[q..q + count]);
+    let [fx, fy, fz] = forces.map(|axis| &mut axis[..count]);
+    for i in 0..count {
+        let a = [xa[i], ya[i], za[i], ua[i], va[i], wa[i]];
+        let b = [xb[i], yb[i], zb[i], ub[i], vb[i], wb[i]];
+        let force = spring_force(family, |k| a[k], |k| b[k]);
+        let force = if i < len { force } else { [T::ZERO; 3] };
+        (fx[i], fy[i], fz[i]) = (force[0], force[1], force[2]);
     }
-    if start < len {
-        let count = len - start;
-        let a = load_block(x, v, p + start, count);
-        let b = load_block(x, v, q + start, count);
-        out.put_partial(start, count, &spring_block(family, &a, &b));
-    }
-}
-
-/// The positions then velocities of `count ≤ LANES` consecutive particles from `first`, per
-/// component, padded with zeros.
-#[inline(always)]
-fn load_block<T: Real>(x: [&[T]; 3], v: [&[T]; 3], first: usize, count: usize) -> [[T; LANES]; 6] {
-    let mut block = [[T::ZERO; LANES]; 6];
-    for (lanes, axis) in block.iter_mut().zip(x.into_iter().chain(v)) {
-        if count == LANES {
-            lanes.copy_from_slice(&axis[first..first + LANES]);
-        } else {
-            lanes[..count].copy_from_slice(&axis[first..first + count]);
-        }
-    }
-    block
-}
-
-/// The forces on the first ends of a block of springs, per axis.
-#[inline(always)]
-fn spring_block<T: Real>(family: &Family<T>, a: &[[T; LANES]; 6], b: &[[T; LANES]; 6]) -> Block<T> {
-    let mut block = [[T::ZERO; LANES]; 3];
-    for lane in 0..LANES {
-        let [fx, fy, fz] = spring_force(family, |k| a[k][lane], |k| b[k][lane]);
-        block[0][lane] = fx;
-        block[1][lane] = fy;
-        block[2][lane] = fz;
-    }
-    block
 }
 
 /// The force on the first end of one spring, given each end's `[x, y, z, vx, vy, vz]` by

@@ -17,11 +17,18 @@ use std::sync::OnceLock;
 /// much larger than the cost of handing it to another thread.
 pub const MIN_PARTICLES_PER_BAND: usize = 2048;
 
-/// The solver's thread pool: one thread per available core.
+/// The environment variable that sets the pool's size (a positive integer); by default the pool
+/// has one thread per available core.
+pub const THREADS_VARIABLE: &str = "DRAPE_SOLVER_THREADS";
+
+/// The solver's thread pool: [`THREADS_VARIABLE`] threads, or one per available core.
 pub fn pool() -> &'static rayon::ThreadPool {
     static POOL: OnceLock<rayon::ThreadPool> = OnceLock::new();
     POOL.get_or_init(|| {
-        let threads = std::thread::available_parallelism().map_or(1, usize::from);
+        let configured = std::env::var(THREADS_VARIABLE).ok().and_then(|v| v.trim().parse::<usize>().ok());
+        let threads = configured
+            .filter(|&n| n > 0)
+            .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, usize::from));
         rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
             .thread_name(|i| format!("drape-solver-{i}"))
