@@ -43,6 +43,10 @@ pub struct JobsConfig {
     pub lease: Duration,
     /// How long results are kept after their job ends.
     pub result_ttl: Duration,
+    /// How long an idle worker waits before looking in the store again for jobs it was not told
+    /// of: queued by another instance sharing the store, or left by one that died. A job queued
+    /// through this instance wakes a worker at once.
+    pub idle_poll: Duration,
 }
 
 impl Default for JobsConfig {
@@ -55,6 +59,7 @@ impl Default for JobsConfig {
             before_run: None,
             lease: Duration::from_secs(30),
             result_ttl: Duration::from_secs(24 * 3600),
+            idle_poll: Duration::from_millis(200),
         }
     }
 }
@@ -127,9 +132,6 @@ pub enum Cancelled {
     AlreadyEnded(JobRecord),
 }
 
-/// How long an idle worker waits before looking in the store again, for jobs submitted to other
-/// instances or left by a dead one; a job submitted here wakes a worker at once.
-pub(super) const IDLE_POLL: Duration = Duration::from_millis(200);
 /// How often a waiter looks at a job that does not run here.
 const REMOTE_POLL: Duration = Duration::from_millis(100);
 
@@ -197,34 +199,46 @@ impl Live {
 const SHUT_DOWN: &str = "the server shut down before the job finished";
 const CANCELLED: &str = "cancelled by request";
 
-/// Wakes idle workers when a job is submitted here. A missed ring costs one [`IDLE_POLL`].
+/// Wakes idle workers when a job is submitted here; a worker that misses a ring finds the job
+/// at its next [`JobsConfig::idle_poll`].
+///
+/// Rings are counted, so one that comes while every worker is between its look at the store and
+/// its wait is not lost; the count is held to the number of workers, as each ring past that
+/// would only send a worker to find the queue already empty.
 pub(super) struct Doorbell {
     rings: Mutex<usize>,
     bell: Condvar,
+    most: usize,
 }
 
 impl Doorbell {
-    fn new() -> Self {
-        Self { rings: Mutex::new(0), bell: Condvar::new() }
+    /// A bell for `workers` workers.
+    pub(super) fn new(workers: usize) -> Self {
+        Self { rings: Mutex::new(0), bell: Condvar::new(), most: workers.max(1) }
     }
 
-    fn ring(&self) {
-        *self.rings.lock().unwrap_or_else(PoisonError::into_inner) += 1;
+    /// Wakes one waiting worker, or the next one to wait.
+    pub(super) fn ring(&self) {
+        let mut rings = self.rings.lock().unwrap_or_else(PoisonError::into_inner);
+        *rings = (*rings + 1).min(self.most);
         self.bell.notify_one();
     }
 
     fn ring_all(&self) {
-        *self.rings.lock().unwrap_or_else(PoisonError::into_inner) += 1;
+        *self.rings.lock().unwrap_or_else(PoisonError::into_inner) = self.most;
         self.bell.notify_all();
     }
 
-    /// Waits for a ring, or `timeout`.
-    pub(super) fn wait(&self, timeout: Duration) {
-        let mut rings = self.rings.lock().unwrap_or_else(PoisonError::into_inner);
-        if *rings == 0 {
-            rings = self.bell.wait_timeout(rings, timeout).unwrap_or_else(PoisonError::into_inner).0;
-        }
+    /// Waits for a ring, or `timeout`; returns whether it was rung.
+    pub(super) fn wait(&self, timeout: Duration) -> bool {
+        let rings = self.rings.lock().unwrap_or_else(PoisonError::into_inner);
+        let (mut rings, _) = self
+            .bell
+            .wait_timeout_while(rings, timeout, |rings| *rings == 0)
+            .unwrap_or_else(PoisonError::into_inner);
+        let rung = *rings > 0;
         *rings = rings.saturating_sub(1);
+        rung
     }
 }
 
@@ -283,7 +297,7 @@ impl Jobs {
             config,
             runtime: tokio::runtime::Handle::current(),
             owner: format!("{}-{}", std::process::id(), JobId::new()),
-            doorbell: Doorbell::new(),
+            doorbell: Doorbell::new(workers),
             running: AtomicUsize::new(0),
             particle_steps: AtomicU64::new(0),
             busy_nanos: AtomicU64::new(0),
@@ -561,5 +575,35 @@ fn repeat_of(earlier: JobRecord, key: &Idempotency) -> Result<Submitted, SubmitE
     match &earlier.idempotency {
         Some(held) if held.fingerprint == key.fingerprint => Ok(Submitted { job: earlier, repeated: true }),
         _ => Err(SubmitError::KeyReused { key: key.key.clone(), job: earlier.id }),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rings_are_counted_up_to_the_number_of_workers() {
+        let bell = Doorbell::new(2);
+        assert!(!bell.wait(Duration::ZERO), "nothing rang yet");
+        for _ in 0..10 {
+            bell.ring();
+        }
+        // Ten jobs queued while both workers were busy send at most two of them to the store.
+        assert!(bell.wait(Duration::ZERO));
+        assert!(bell.wait(Duration::ZERO));
+        assert!(!bell.wait(Duration::ZERO));
+    }
+
+    #[test]
+    fn a_ring_wakes_a_waiting_worker() {
+        let bell = Arc::new(Doorbell::new(1));
+        let waiter = {
+            let bell = Arc::clone(&bell);
+            // Far longer than any test runs: the wait can only end by the ring.
+            std::thread::spawn(move || bell.wait(Duration::from_secs(24 * 3600)))
+        };
+        bell.ring();
+        assert!(waiter.join().unwrap(), "the worker was woken by the ring");
     }
 }
