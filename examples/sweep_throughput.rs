@@ -53,8 +53,8 @@ async fn main() -> Result<(), Box<dyn Error>> {
     }
     let binary = drape_binary()?;
     let dir = tempfile::tempdir()?;
-    let memory = Server::start(&binary, dir.path(), "memory", "memory.log", &extra)?;
     let sqlite = Server::start(&binary, dir.path(), "sqlite://drape.db", "sqlite.log", &extra)?;
+    let memory = Server::start(&binary, dir.path(), "memory", "memory.log", &extra)?;
     let client = reqwest::Client::new();
 
     let stiffnesses: Vec<f64> = (0..VARIANTS).map(|i| 2000.0 + 50.0 * i as f64).collect();
@@ -106,7 +106,11 @@ async fn main() -> Result<(), Box<dyn Error>> {
     Ok(())
 }
 
-async fn run_sweep(client: &reqwest::Client, server: &Server, body: &[u8]) -> Result<Measured, Box<dyn Error>> {
+async fn run_sweep(
+    client: &reqwest::Client,
+    server: &Server,
+    body: &[u8],
+) -> Result<Measured, Box<dyn Error>> {
     let busy_before = worker_busy(client, server).await?;
     let machine_before = machine_seconds()?;
     let cpu_before = cpu_seconds(server.pid())?;

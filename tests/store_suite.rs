@@ -356,7 +356,8 @@ async fn a_queued_job_wakes_an_idle_worker(store: Arc<dyn JobStore>) {
         let document = json!({"duration": 0.1, "dt": 0.01, "bodies": [{"type": "chain", "count": count}],
                               "output": {"frames": "final"}});
         let scene = Scene::from_value(document.clone()).unwrap();
-        let submission = Submission { scene, document, fingerprint: 0, idempotency_key: None, max_work: None };
+        let submission =
+            Submission { scene, document, fingerprint: 0, idempotency_key: None, max_work: None };
         let id = jobs.submit(submission).await.unwrap().job.id;
         let ended = tokio::time::timeout(idle_poll / 2, jobs.wait(&id))
             .await

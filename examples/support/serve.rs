@@ -26,7 +26,10 @@ pub fn drape_binary() -> Result<PathBuf, String> {
     }
     let (built, this) = (modified(&binary), modified(&exe));
     if built < this.map(|t| t - std::time::Duration::from_secs(600)) {
-        eprintln!("warning: {} is older than this example; `cargo build --release` rebuilds it", binary.display());
+        eprintln!(
+            "warning: {} is older than this example; `cargo build --release` rebuilds it",
+            binary.display()
+        );
     }
     Ok(binary)
 }

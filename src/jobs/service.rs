@@ -87,6 +87,15 @@ pub struct Submitted {
     pub repeated: bool,
 }
 
+/// A job that has ended, with its result if it has one.
+#[derive(Debug)]
+pub struct Ended {
+    /// The job as stored.
+    pub job: JobRecord,
+    /// Its result, as stored.
+    pub result: Option<StoredResult>,
+}
+
 /// Why a submission was refused.
 #[derive(Debug, Error)]
 pub enum SubmitError {
@@ -174,6 +183,9 @@ pub(super) struct Live {
     /// Shutdown stopped it and it goes back to the queue, to run again after a restart.
     pub(super) released: AtomicBool,
     shutting_down: AtomicBool,
+    /// The result once it is stored, for whoever waits on the job here: `POST /simulate`
+    /// answers with it without reading it back from the store.
+    result: Mutex<Option<StoredResult>>,
 }
 
 impl Live {
@@ -187,6 +199,7 @@ impl Live {
             lease_lost: AtomicBool::new(false),
             released: AtomicBool::new(false),
             shutting_down: AtomicBool::new(false),
+            result: Mutex::new(None),
         }
     }
 
@@ -274,8 +287,10 @@ impl Shared {
         } else if live.lease_lost.load(Ordering::Relaxed) {
             tracing::warn!(job = %id, "the job is no longer this instance's; its end here is not recorded");
         } else {
+            let result = outcome.result.clone();
             match self.runtime.block_on(self.store.finish(id, &self.owner, now_ms(), outcome)) {
                 Ok(true) => {
+                    *live.result.lock().unwrap_or_else(PoisonError::into_inner) = result;
                     live.status.send_replace(status);
                 }
                 Ok(false) => tracing::warn!(job = %id, "lost the job's lease; its end here is not recorded"),
@@ -426,15 +441,38 @@ impl Jobs {
     /// waiter as it ends; one that runs elsewhere is looked at every [`REMOTE_POLL`]. Returns the
     /// job unfinished if this instance hands over on shutdown.
     pub async fn wait(&self, id: &JobId) -> Result<Option<JobRecord>, StoreError> {
+        Ok(self.wait_for_end(id).await?.map(|(job, _)| job))
+    }
+
+    /// Waits like [`wait`](Self::wait) and returns the job with its result, if it ended with
+    /// one. The result of a job that ran here comes from memory, as it was stored; only that of
+    /// a job run by another instance is read from the store.
+    pub async fn wait_with_result(&self, id: &JobId) -> Result<Option<Ended>, StoreError> {
+        let Some((job, live)) = self.wait_for_end(id).await? else { return Ok(None) };
+        let kept = live.and_then(|live| live.result.lock().unwrap_or_else(PoisonError::into_inner).clone());
+        let result = match kept {
+            Some(result) => Some(result),
+            None if job.status.is_final() => self.shared.store.result(id).await?,
+            None => None,
+        };
+        Ok(Some(Ended { job, result }))
+    }
+
+    /// The job once it has ended (or this instance hands over), and its [`Live`] entry if it
+    /// was last seen running here.
+    async fn wait_for_end(&self, id: &JobId) -> Result<Option<(JobRecord, Option<Arc<Live>>)>, StoreError> {
         let mut changes = self.shared.changes.subscribe();
         loop {
-            if let Some(mut status) = self.watch(id) {
-                // An error means the job was forgotten, which happens only after it ended here.
-                let _ = status.wait_for(|s| s.is_final()).await;
+            let live = self.shared.live().get(id).cloned();
+            if let Some(live) = &live {
+                // Subscribing to the job's own channel holds it open even after the job is forgotten.
+                let _ = live.status.subscribe().wait_for(|s| s.is_final()).await;
             }
             let job = self.shared.store.get(id).await?;
-            if job.as_ref().is_none_or(|job| job.status.is_final()) || self.handing_over() {
-                return Ok(job);
+            match job {
+                None => return Ok(None),
+                Some(job) if job.status.is_final() || self.handing_over() => return Ok(Some((job, live))),
+                Some(_) => {}
             }
             tokio::select! {
                 _ = changes.changed() => {}

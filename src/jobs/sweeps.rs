@@ -167,7 +167,10 @@ impl Sweeps {
             reference_job,
             variant_jobs: queued.collect(),
             created_ms: now_ms(),
-            runs: Mutex::new(Runs { outcomes: (0..count).map(|_| queued_run()).collect(), ended: vec![false; count] }),
+            runs: Mutex::new(Runs {
+                outcomes: (0..count).map(|_| queued_run()).collect(),
+                ended: vec![false; count],
+            }),
         });
         self.lock().insert(record.id.clone(), Arc::clone(&record));
         tracing::info!(sweep = %record.id, runs, "sweep queued");
