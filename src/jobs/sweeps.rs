@@ -257,7 +257,11 @@ async fn stored_run(jobs: &Jobs, id: &JobId) -> Result<StoredRun, StoreError> {
 fn assemble(record: &SweepRecord, fresh: Vec<(usize, StoredRun)>) -> SweepState {
     let mut runs = record.runs();
     let Runs { outcomes, ended } = &mut *runs;
+    // A poll that read the store earlier than another may come second: what has ended stays.
     for (index, run) in fresh {
+        if ended[index] {
+            continue;
+        }
         let outcome = match run {
             StoredRun::Pending(outcome) => outcome,
             StoredRun::Result(id, bytes) => match read_json(&bytes) {
