@@ -90,6 +90,7 @@ impl Config {
             before_run: None,
             lease: self.lease,
             result_ttl: self.result_ttl,
+            idle_poll: JobsConfig::default().idle_poll,
         }
     }
 

@@ -7,12 +7,15 @@ mod pg;
 
 use std::collections::HashMap;
 use std::sync::Arc;
+use std::time::Duration;
 
 use bytes::Bytes;
 use drape::jobs::{
-    CancelRequest, Claimed, Failure, Idempotency, Inserted, JobId, JobRecord, JobStatus, JobStore, Lease,
-    MemoryStore, Outcome, Page, Plan, PostgresStore, Renewed, SqliteStore, StoredResult,
+    CancelRequest, Claimed, Failure, Idempotency, Inserted, JobId, JobRecord, JobStatus, JobStore, Jobs,
+    JobsConfig, Lease, MemoryStore, Outcome, Page, Plan, PostgresStore, Renewed, SqliteStore, StoredResult,
+    Submission,
 };
+use drape::scene::Scene;
 use serde_json::json;
 
 /// A store and what must live as long as it.
@@ -343,6 +346,29 @@ async fn racing_claimers_never_share_a_job(store: Arc<dyn JobStore>) {
     assert_eq!(claimed, ids);
 }
 
+/// A job queued through this instance wakes an idle worker: with workers looking in the store
+/// on their own only once an hour, each of several jobs queued one after another still runs to
+/// its end (the timeout only keeps a broken build from hanging).
+async fn a_queued_job_wakes_an_idle_worker(store: Arc<dyn JobStore>) {
+    let idle_poll = Duration::from_secs(3600);
+    let jobs = Jobs::start(store, JobsConfig { workers: 1, idle_poll, ..JobsConfig::default() });
+    for count in 2..5 {
+        let document = json!({"duration": 0.1, "dt": 0.01, "bodies": [{"type": "chain", "count": count}],
+                              "output": {"frames": "final"}});
+        let scene = Scene::from_value(document.clone()).unwrap();
+        let submission =
+            Submission { scene, document, fingerprint: 0, idempotency_key: None, max_work: None };
+        let id = jobs.submit(submission).await.unwrap().job.id;
+        let ended = tokio::time::timeout(idle_poll / 2, jobs.wait(&id))
+            .await
+            .expect("the job runs without waiting for the idle poll")
+            .unwrap()
+            .unwrap();
+        assert_eq!((ended.status, ended.steps_done, ended.attempts), (JobStatus::Succeeded, 10, 1));
+    }
+    jobs.shutdown(Duration::ZERO).await;
+}
+
 macro_rules! suite {
     ($backend:ident: $($test:ident),* $(,)?) => {
         mod $backend {
@@ -376,6 +402,7 @@ every_backend!(
     results_are_kept_whole_until_their_retention_ends,
     shutdown_cancels_only_queued_jobs,
     racing_claimers_never_share_a_job,
+    a_queued_job_wakes_an_idle_worker,
 );
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

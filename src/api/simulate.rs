@@ -31,15 +31,16 @@ pub async fn simulate(
     };
     let id = state.jobs.submit(submission).await?.job.id;
     let guard = CancelOnDrop { jobs: state.jobs.clone(), id: Some(id.clone()) };
-    let job = state.jobs.wait(&id).await?.ok_or_else(|| AppError::Internal(format!("job {id} vanished")))?;
+    let ended = state
+        .jobs
+        .wait_with_result(&id)
+        .await?
+        .ok_or_else(|| AppError::Internal(format!("job {id} vanished")))?;
     guard.disarm();
+    let job = ended.job;
     match job.status {
         JobStatus::Succeeded | JobStatus::Diverged => {
-            let result = state
-                .jobs
-                .result(&id)
-                .await?
-                .ok_or_else(|| AppError::Internal(format!("job {id} has no result")))?;
+            let result = ended.result.ok_or_else(|| AppError::Internal(format!("job {id} has no result")))?;
             let mut response = result_response(&job, result);
             let location = HeaderValue::from_str(&format!("/jobs/{id}")).expect("job ids are URL-safe");
             response.headers_mut().insert(header::CONTENT_LOCATION, location);

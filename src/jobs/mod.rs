@@ -36,7 +36,7 @@ pub use memory::MemoryStore;
 pub use open::StoreUrl;
 pub use postgres::PostgresStore;
 pub use record::{Idempotency, JobRecord, Plan, now_ms};
-pub use service::{BeforeRun, Cancelled, Jobs, JobsConfig, Submission, SubmitError, Submitted};
+pub use service::{BeforeRun, Cancelled, Ended, Jobs, JobsConfig, Submission, SubmitError, Submitted};
 pub use sqlite::SqliteStore;
 pub use status::{Failure, JobStatus};
 pub use store::{

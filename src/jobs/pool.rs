@@ -17,7 +17,7 @@ use std::sync::atomic::Ordering;
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use super::service::{IDLE_POLL, Live, Shared};
+use super::service::{Live, Shared};
 use super::store::{Claimed, Outcome, Renewed};
 use super::{Failure, JobId, JobStatus, encode_result, now_ms};
 use crate::output::stats_json;
@@ -41,10 +41,12 @@ pub(super) fn spawn_workers(shared: &Arc<Shared>, count: usize) -> Vec<JoinHandl
                     while !shared.stopped.load(Ordering::Relaxed) {
                         match shared.runtime.block_on(shared.store.claim(&shared.lease(), now_ms())) {
                             Ok(Some(claimed)) => run_job(&shared, claimed),
-                            Ok(None) => shared.doorbell.wait(IDLE_POLL),
+                            Ok(None) => {
+                                shared.doorbell.wait(shared.config.idle_poll);
+                            }
                             Err(e) => {
                                 tracing::error!(error = %e, "cannot claim a job");
-                                shared.doorbell.wait(IDLE_POLL);
+                                shared.doorbell.wait(shared.config.idle_poll);
                             }
                         }
                     }

@@ -43,6 +43,10 @@ pub struct JobsConfig {
     pub lease: Duration,
     /// How long results are kept after their job ends.
     pub result_ttl: Duration,
+    /// How long an idle worker waits before looking in the store again for jobs it was not told
+    /// of: queued by another instance sharing the store, or left by one that died. A job queued
+    /// through this instance wakes a worker at once.
+    pub idle_poll: Duration,
 }
 
 impl Default for JobsConfig {
@@ -55,6 +59,7 @@ impl Default for JobsConfig {
             before_run: None,
             lease: Duration::from_secs(30),
             result_ttl: Duration::from_secs(24 * 3600),
+            idle_poll: Duration::from_millis(200),
         }
     }
 }
@@ -80,6 +85,15 @@ pub struct Submitted {
     pub job: JobRecord,
     /// Whether it is an earlier job with the same idempotency key and body.
     pub repeated: bool,
+}
+
+/// A job that has ended, with its result if it has one.
+#[derive(Debug)]
+pub struct Ended {
+    /// The job as stored.
+    pub job: JobRecord,
+    /// Its result, as stored.
+    pub result: Option<StoredResult>,
 }
 
 /// Why a submission was refused.
@@ -127,9 +141,6 @@ pub enum Cancelled {
     AlreadyEnded(JobRecord),
 }
 
-/// How long an idle worker waits before looking in the store again, for jobs submitted to other
-/// instances or left by a dead one; a job submitted here wakes a worker at once.
-pub(super) const IDLE_POLL: Duration = Duration::from_millis(200);
 /// How often a waiter looks at a job that does not run here.
 const REMOTE_POLL: Duration = Duration::from_millis(100);
 
@@ -172,6 +183,9 @@ pub(super) struct Live {
     /// Shutdown stopped it and it goes back to the queue, to run again after a restart.
     pub(super) released: AtomicBool,
     shutting_down: AtomicBool,
+    /// The result once it is stored, for whoever waits on the job here: `POST /simulate`
+    /// answers with it without reading it back from the store.
+    result: Mutex<Option<StoredResult>>,
 }
 
 impl Live {
@@ -185,6 +199,7 @@ impl Live {
             lease_lost: AtomicBool::new(false),
             released: AtomicBool::new(false),
             shutting_down: AtomicBool::new(false),
+            result: Mutex::new(None),
         }
     }
 
@@ -197,34 +212,46 @@ impl Live {
 const SHUT_DOWN: &str = "the server shut down before the job finished";
 const CANCELLED: &str = "cancelled by request";
 
-/// Wakes idle workers when a job is submitted here. A missed ring costs one [`IDLE_POLL`].
+/// Wakes idle workers when a job is submitted here; a worker that misses a ring finds the job
+/// at its next [`JobsConfig::idle_poll`].
+///
+/// Rings are counted, so one that comes while every worker is between its look at the store and
+/// its wait is not lost; the count is held to the number of workers, as each ring past that
+/// would only send a worker to find the queue already empty.
 pub(super) struct Doorbell {
     rings: Mutex<usize>,
     bell: Condvar,
+    most: usize,
 }
 
 impl Doorbell {
-    fn new() -> Self {
-        Self { rings: Mutex::new(0), bell: Condvar::new() }
+    /// A bell for `workers` workers.
+    pub(super) fn new(workers: usize) -> Self {
+        Self { rings: Mutex::new(0), bell: Condvar::new(), most: workers.max(1) }
     }
 
-    fn ring(&self) {
-        *self.rings.lock().unwrap_or_else(PoisonError::into_inner) += 1;
+    /// Wakes one waiting worker, or the next one to wait.
+    pub(super) fn ring(&self) {
+        let mut rings = self.rings.lock().unwrap_or_else(PoisonError::into_inner);
+        *rings = (*rings + 1).min(self.most);
         self.bell.notify_one();
     }
 
     fn ring_all(&self) {
-        *self.rings.lock().unwrap_or_else(PoisonError::into_inner) += 1;
+        *self.rings.lock().unwrap_or_else(PoisonError::into_inner) = self.most;
         self.bell.notify_all();
     }
 
-    /// Waits for a ring, or `timeout`.
-    pub(super) fn wait(&self, timeout: Duration) {
-        let mut rings = self.rings.lock().unwrap_or_else(PoisonError::into_inner);
-        if *rings == 0 {
-            rings = self.bell.wait_timeout(rings, timeout).unwrap_or_else(PoisonError::into_inner).0;
-        }
+    /// Waits for a ring, or `timeout`; returns whether it was rung.
+    pub(super) fn wait(&self, timeout: Duration) -> bool {
+        let rings = self.rings.lock().unwrap_or_else(PoisonError::into_inner);
+        let (mut rings, _) = self
+            .bell
+            .wait_timeout_while(rings, timeout, |rings| *rings == 0)
+            .unwrap_or_else(PoisonError::into_inner);
+        let rung = *rings > 0;
         *rings = rings.saturating_sub(1);
+        rung
     }
 }
 
@@ -260,8 +287,10 @@ impl Shared {
         } else if live.lease_lost.load(Ordering::Relaxed) {
             tracing::warn!(job = %id, "the job is no longer this instance's; its end here is not recorded");
         } else {
+            let result = outcome.result.clone();
             match self.runtime.block_on(self.store.finish(id, &self.owner, now_ms(), outcome)) {
                 Ok(true) => {
+                    *live.result.lock().unwrap_or_else(PoisonError::into_inner) = result;
                     live.status.send_replace(status);
                 }
                 Ok(false) => tracing::warn!(job = %id, "lost the job's lease; its end here is not recorded"),
@@ -283,7 +312,7 @@ impl Jobs {
             config,
             runtime: tokio::runtime::Handle::current(),
             owner: format!("{}-{}", std::process::id(), JobId::new()),
-            doorbell: Doorbell::new(),
+            doorbell: Doorbell::new(workers),
             running: AtomicUsize::new(0),
             particle_steps: AtomicU64::new(0),
             busy_nanos: AtomicU64::new(0),
@@ -412,15 +441,38 @@ impl Jobs {
     /// waiter as it ends; one that runs elsewhere is looked at every [`REMOTE_POLL`]. Returns the
     /// job unfinished if this instance hands over on shutdown.
     pub async fn wait(&self, id: &JobId) -> Result<Option<JobRecord>, StoreError> {
+        Ok(self.wait_for_end(id).await?.map(|(job, _)| job))
+    }
+
+    /// Waits like [`wait`](Self::wait) and returns the job with its result, if it ended with
+    /// one. The result of a job that ran here comes from memory, as it was stored; only that of
+    /// a job run by another instance is read from the store.
+    pub async fn wait_with_result(&self, id: &JobId) -> Result<Option<Ended>, StoreError> {
+        let Some((job, live)) = self.wait_for_end(id).await? else { return Ok(None) };
+        let kept = live.and_then(|live| live.result.lock().unwrap_or_else(PoisonError::into_inner).clone());
+        let result = match kept {
+            Some(result) => Some(result),
+            None if job.status.is_final() => self.shared.store.result(id).await?,
+            None => None,
+        };
+        Ok(Some(Ended { job, result }))
+    }
+
+    /// The job once it has ended (or this instance hands over), and its [`Live`] entry if it
+    /// was last seen running here.
+    async fn wait_for_end(&self, id: &JobId) -> Result<Option<(JobRecord, Option<Arc<Live>>)>, StoreError> {
         let mut changes = self.shared.changes.subscribe();
         loop {
-            if let Some(mut status) = self.watch(id) {
-                // An error means the job was forgotten, which happens only after it ended here.
-                let _ = status.wait_for(|s| s.is_final()).await;
+            let live = self.shared.live().get(id).cloned();
+            if let Some(live) = &live {
+                // Subscribing to the job's own channel holds it open even after the job is forgotten.
+                let _ = live.status.subscribe().wait_for(|s| s.is_final()).await;
             }
             let job = self.shared.store.get(id).await?;
-            if job.as_ref().is_none_or(|job| job.status.is_final()) || self.handing_over() {
-                return Ok(job);
+            match job {
+                None => return Ok(None),
+                Some(job) if job.status.is_final() || self.handing_over() => return Ok(Some((job, live))),
+                Some(_) => {}
             }
             tokio::select! {
                 _ = changes.changed() => {}
@@ -561,5 +613,35 @@ fn repeat_of(earlier: JobRecord, key: &Idempotency) -> Result<Submitted, SubmitE
     match &earlier.idempotency {
         Some(held) if held.fingerprint == key.fingerprint => Ok(Submitted { job: earlier, repeated: true }),
         _ => Err(SubmitError::KeyReused { key: key.key.clone(), job: earlier.id }),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rings_are_counted_up_to_the_number_of_workers() {
+        let bell = Doorbell::new(2);
+        assert!(!bell.wait(Duration::ZERO), "nothing rang yet");
+        for _ in 0..10 {
+            bell.ring();
+        }
+        // Ten jobs queued while both workers were busy send at most two of them to the store.
+        assert!(bell.wait(Duration::ZERO));
+        assert!(bell.wait(Duration::ZERO));
+        assert!(!bell.wait(Duration::ZERO));
+    }
+
+    #[test]
+    fn a_ring_wakes_a_waiting_worker() {
+        let bell = Arc::new(Doorbell::new(1));
+        let waiter = {
+            let bell = Arc::clone(&bell);
+            // Far longer than any test runs: the wait can only end by the ring.
+            std::thread::spawn(move || bell.wait(Duration::from_secs(24 * 3600)))
+        };
+        bell.ring();
+        assert!(waiter.join().unwrap(), "the worker was woken by the ring");
     }
 }

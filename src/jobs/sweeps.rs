@@ -8,15 +8,19 @@
 //! varied value is to blame. If the queue fills part-way, the runs already queued are cancelled,
 //! so a refused sweep leaves nothing running. The registry is in memory: sweeps are forgotten
 //! on restart, and a run whose job the store has forgotten shows as failed.
+//!
+//! A run's outcome is read from the store once, when its job has ended, and kept with the
+//! sweep: clients poll `GET /sweeps/{id}` while a sweep runs, and each poll reads only the runs
+//! still under way instead of reading back and parsing every result again.
 
 use std::collections::HashMap;
-use std::sync::{Arc, Mutex, PoisonError};
+use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
 
 use bytes::Bytes;
 use serde_json::Value;
 use thiserror::Error;
 
-use super::{JobId, Jobs, StoreError, Submission, SubmitError, now_ms};
+use super::{JobId, JobStatus, Jobs, StoreError, Submission, SubmitError, now_ms};
 use crate::output::{Format, read_json};
 use crate::scene::{Field, FieldError, FrameSelection, Scene};
 use crate::sweep::{Outcome, Sweep, SweepError, Table};
@@ -34,12 +38,26 @@ pub struct SweepRecord {
     pub variant_jobs: Vec<JobId>,
     /// When it was submitted, in milliseconds since the Unix epoch.
     pub created_ms: u64,
+    /// The outcome of every run, in [`jobs`](Self::jobs) order, as last read from the store.
+    runs: Mutex<Runs>,
+}
+
+/// What is known of a sweep's runs.
+#[derive(Debug)]
+struct Runs {
+    outcomes: Vec<Outcome>,
+    /// Which runs have ended; their outcomes are final and are not read again.
+    ended: Vec<bool>,
 }
 
 impl SweepRecord {
     /// Every job of the sweep: the reference first, then the variants.
     pub fn jobs(&self) -> impl Iterator<Item = &JobId> {
         self.reference_job.iter().chain(&self.variant_jobs)
+    }
+
+    fn runs(&self) -> MutexGuard<'_, Runs> {
+        self.runs.lock().unwrap_or_else(PoisonError::into_inner)
     }
 }
 
@@ -139,14 +157,20 @@ impl Sweeps {
                 }
             }
         }
+        let count = queued.len();
         let mut queued = queued.into_iter();
         let reference_job = sweep.reference.as_ref().and_then(|_| queued.next());
+        let queued_run = || Outcome::Pending { status: JobStatus::Queued.name().into(), detail: None };
         let record = Arc::new(SweepRecord {
             id: JobId::new(),
             sweep,
             reference_job,
             variant_jobs: queued.collect(),
             created_ms: now_ms(),
+            runs: Mutex::new(Runs {
+                outcomes: (0..count).map(|_| queued_run()).collect(),
+                ended: vec![false; count],
+            }),
         });
         self.lock().insert(record.id.clone(), Arc::clone(&record));
         tracing::info!(sweep = %record.id, runs, "sweep queued");
@@ -159,15 +183,16 @@ impl Sweeps {
     }
 
     /// The sweep's table as it stands: ended runs read back from their results, others pending.
-    /// The store is read here; reading the results back and assembling the table, CPU work that
-    /// grows with the sweep, runs on the blocking pool.
+    /// The store is read here, for the runs not known to have ended; reading their results back
+    /// and assembling the table, CPU work that grows with the sweep, runs on the blocking pool.
     pub async fn state(&self, jobs: &Jobs, record: &Arc<SweepRecord>) -> Result<SweepState, StoreError> {
-        let mut runs = Vec::with_capacity(record.variant_jobs.len() + 1);
-        for id in record.jobs() {
-            runs.push(stored_run(jobs, id).await?);
+        let ended = record.runs().ended.clone();
+        let mut fresh = Vec::new();
+        for (index, id) in record.jobs().enumerate().filter(|(index, _)| !ended[*index]) {
+            fresh.push((index, stored_run(jobs, id).await?));
         }
         let record = Arc::clone(record);
-        tokio::task::spawn_blocking(move || assemble(&record, runs))
+        tokio::task::spawn_blocking(move || assemble(&record, fresh))
             .await
             .map_err(|e| StoreError::Backend(format!("assembling the sweep table failed: {e}")))
     }
@@ -227,11 +252,17 @@ async fn stored_run(jobs: &Jobs, id: &JobId) -> Result<StoredRun, StoreError> {
     Ok(StoredRun::Pending(Outcome::Pending { status: job.status.name().into(), detail: job.message }))
 }
 
-/// Reads each stored result back and assembles the table.
-fn assemble(record: &SweepRecord, runs: Vec<StoredRun>) -> SweepState {
-    let outcomes: Vec<Outcome> = runs
-        .into_iter()
-        .map(|run| match run {
+/// Reads the results of the runs just read from the store back, keeps the outcomes of those
+/// that ended, and assembles the table.
+fn assemble(record: &SweepRecord, fresh: Vec<(usize, StoredRun)>) -> SweepState {
+    let mut runs = record.runs();
+    let Runs { outcomes, ended } = &mut *runs;
+    // A poll that read the store earlier than another may come second: what has ended stays.
+    for (index, run) in fresh {
+        if ended[index] {
+            continue;
+        }
+        let outcome = match run {
             StoredRun::Pending(outcome) => outcome,
             StoredRun::Result(id, bytes) => match read_json(&bytes) {
                 Ok(recording) => Outcome::Finished(Box::new(recording)),
@@ -240,21 +271,20 @@ fn assemble(record: &SweepRecord, runs: Vec<StoredRun>) -> SweepState {
                     detail: Some(format!("job {id}'s result cannot be read: {e}")),
                 },
             },
-        })
-        .collect();
-    let runs = outcomes.len();
-    let finished = outcomes
-        .iter()
-        .filter(|o| match o {
+        };
+        ended[index] = match &outcome {
             Outcome::Finished(_) => true,
             Outcome::Pending { status, .. } => !matches!(status.as_str(), "queued" | "running"),
-        })
-        .count();
-    let mut outcomes = outcomes.into_iter();
-    let reference = record.reference_job.as_ref().and_then(|_| outcomes.next());
-    let variants: Vec<Outcome> = outcomes.collect();
-    let table = Table::assemble(&record.sweep, reference.as_ref(), &variants);
-    SweepState { table, finished, runs }
+        };
+        outcomes[index] = outcome;
+    }
+    let finished = ended.iter().filter(|&&e| e).count();
+    let (reference, variants) = match record.reference_job {
+        Some(_) => (outcomes.first(), outcomes.get(1..).unwrap_or_default()),
+        None => (None, &outcomes[..]),
+    };
+    let table = Table::assemble(&record.sweep, reference, variants);
+    SweepState { table, finished, runs: outcomes.len() }
 }
 
 /// The values listed under each `vary` pointer, in document order.

@@ -1,0 +1,204 @@
+//! How busy `drape serve` keeps the machine through a sweep of 64 small jobs: the peers' 24 × 24
+//! hanging cloth (symplectic Euler, f32, 2,000 steps of 1e-4 s, the default Richardson estimate)
+//! with the structural stiffness varied over 64 values, submitted with `POST /sweeps` and polled
+//! with `GET /sweeps/{id}` every 50 ms until it is complete.
+//!
+//! For each sweep it reads the server's CPU time (user + system, all threads) from
+//! `/proc/PID/stat` before the submission and once the complete table has arrived, and divides
+//! by the wall time between: "cores busy". The machine is shared, so it also reads `/proc/stat`:
+//! the cores other processes used meanwhile and the cores left idle (idle and I/O wait). A
+//! service that leaves cores idle shows idle cores; one that competes with other work shows
+//! fewer cores busy but none idle. From `GET /metrics` it takes the workers' occupancy (time spent
+//! on jobs over workers × wall time). It also prints jobs per second, the time from the last
+//! job's end (its `finished_at`) to the complete table reaching the client, and how long that last
+//! `GET /sweeps/{id}` took. Sweeps alternate between `--store memory` and the default SQLite
+//! store, each server with its default number of workers unless WORKERS is given.
+//!
+//! ```sh
+//! cargo build --release && cargo run --release --example sweep_throughput [-- ROUNDS [WORKERS]]
+//! ```
+
+#[path = "support/serve.rs"]
+mod serve;
+
+use std::error::Error;
+use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+
+use serde_json::{Value, json};
+
+use serve::{Server, cpu_seconds, drape_binary, machine_seconds, median, min, peers_cloth};
+
+const VARIANTS: usize = 64;
+const POLL: Duration = Duration::from_millis(50);
+
+/// One sweep, measured.
+struct Measured {
+    wall_s: f64,
+    cores_busy: f64,
+    other_cores: f64,
+    idle_cores: f64,
+    occupancy: f64,
+    last_end_to_table_s: f64,
+    final_get_s: f64,
+    mean_job_s: f64,
+}
+
+#[tokio::main(flavor = "current_thread")]
+async fn main() -> Result<(), Box<dyn Error>> {
+    let rounds: usize = std::env::args().nth(1).map_or(Ok(3), |a| a.parse())?;
+    let workers: Option<String> = std::env::args().nth(2);
+    let mut extra: Vec<&str> = Vec::new();
+    if let Some(w) = &workers {
+        extra.extend(["--workers", w.as_str()]);
+    }
+    let binary = drape_binary()?;
+    let dir = tempfile::tempdir()?;
+    let sqlite = Server::start(&binary, dir.path(), "sqlite://drape.db", "sqlite.log", &extra)?;
+    let memory = Server::start(&binary, dir.path(), "memory", "memory.log", &extra)?;
+    let client = reqwest::Client::new();
+
+    let stiffnesses: Vec<f64> = (0..VARIANTS).map(|i| 2000.0 + 50.0 * i as f64).collect();
+    let sweep = json!({
+        "scene": peers_cloth(24, 1e-4, 0.2),
+        "vary": {"/bodies/0/springs/structural/k": stiffnesses},
+    });
+    let body = serde_json::to_vec(&sweep)?;
+
+    let servers = [("`--store memory`", &memory), ("default SQLite store", &sqlite)];
+    let mut results: [Vec<Measured>; 2] = Default::default();
+    // A first, uncounted sweep on each server warms it up.
+    for round in 0..=rounds {
+        for k in 0..2 {
+            let which = (round + k) % 2;
+            let (_, server) = servers[which];
+            let measured = run_sweep(&client, server, &body).await?;
+            if round > 0 {
+                results[which].push(measured);
+            }
+        }
+    }
+
+    println!(
+        "{VARIANTS} jobs of a 24 × 24 cloth, 2,000 steps each; {} workers; medians of {rounds} sweeps (min in brackets)\n",
+        workers.as_deref().unwrap_or("default")
+    );
+    println!(
+        "| store | wall (s) | cores busy | other processes (cores) | idle (cores) | worker occupancy | jobs/s | mean run (ms) | last job end → table (ms) | last `GET /sweeps/{{id}}` (ms) |"
+    );
+    println!("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |");
+    for ((name, _), runs) in servers.iter().zip(&results) {
+        let of = |f: fn(&Measured) -> f64| runs.iter().map(f).collect::<Vec<_>>();
+        let wall = of(|m| m.wall_s);
+        println!(
+            "| {name} | {:.2} ({:.2}) | {:.2} | {:.2} | {:.2} | {:.2} | {:.1} | {:.0} | {:.0} | {:.1} |",
+            median(&wall),
+            min(&wall),
+            median(&of(|m| m.cores_busy)),
+            median(&of(|m| m.other_cores)),
+            median(&of(|m| m.idle_cores)),
+            median(&of(|m| m.occupancy)),
+            VARIANTS as f64 / median(&wall),
+            median(&of(|m| m.mean_job_s)) * 1e3,
+            median(&of(|m| m.last_end_to_table_s)) * 1e3,
+            median(&of(|m| m.final_get_s)) * 1e3,
+        );
+    }
+    Ok(())
+}
+
+async fn run_sweep(
+    client: &reqwest::Client,
+    server: &Server,
+    body: &[u8],
+) -> Result<Measured, Box<dyn Error>> {
+    let busy_before = worker_busy(client, server).await?;
+    let machine_before = machine_seconds()?;
+    let cpu_before = cpu_seconds(server.pid())?;
+    let start = Instant::now();
+    let response = client
+        .post(format!("{}/sweeps", server.base))
+        .header("content-type", "application/json")
+        .body(body.to_vec())
+        .send()
+        .await?;
+    if response.status() != 202 {
+        return Err(format!("POST /sweeps answered {}: {}", response.status(), response.text().await?).into());
+    }
+    let id = response.json::<Value>().await?["id"].as_str().ok_or("no sweep id")?.to_string();
+    let (table, final_get_s) = loop {
+        let asked = Instant::now();
+        let table: Value = client.get(format!("{}/sweeps/{id}", server.base)).send().await?.json().await?;
+        if table["complete"] == true {
+            break (table, asked.elapsed().as_secs_f64());
+        }
+        tokio::time::sleep(POLL).await;
+    };
+    let received_ms = SystemTime::now().duration_since(UNIX_EPOCH)?.as_secs_f64() * 1e3;
+    let wall_s = start.elapsed().as_secs_f64();
+    let cpu = cpu_seconds(server.pid())? - cpu_before;
+    let machine_after = machine_seconds()?;
+    let (busy_after, workers) = (worker_busy(client, server).await?, workers(client, server).await?);
+
+    // The table's rows carry the runs' own wall times; the jobs carry when they ended.
+    let rows = table["rows"].as_array().ok_or("no rows")?;
+    let failed = rows.iter().filter(|r| r["status"] != "succeeded").count();
+    if failed > 0 {
+        return Err(format!("{failed} runs did not succeed: {table}").into());
+    }
+    let mean_job_s = rows.iter().filter_map(|r| r["wall_time_s"].as_f64()).sum::<f64>() / rows.len() as f64;
+    let mut last_end_ms = 0.0_f64;
+    for job in table["jobs"]["variants"].as_array().ok_or("no jobs")? {
+        let job: Value = client
+            .get(format!("{}/jobs/{}", server.base, job.as_str().ok_or("a job id")?))
+            .send()
+            .await?
+            .json()
+            .await?;
+        last_end_ms = last_end_ms.max(epoch_ms(job["finished_at"].as_str().ok_or("no finished_at")?)?);
+    }
+    Ok(Measured {
+        wall_s,
+        cores_busy: cpu / wall_s,
+        other_cores: (machine_after.busy - machine_before.busy - cpu) / wall_s,
+        idle_cores: (machine_after.idle - machine_before.idle) / wall_s,
+        occupancy: (busy_after - busy_before) / (workers * wall_s),
+        last_end_to_table_s: (received_ms - last_end_ms) / 1e3,
+        final_get_s,
+        mean_job_s,
+    })
+}
+
+/// A sample of `GET /metrics`.
+async fn metric(client: &reqwest::Client, server: &Server, name: &str) -> Result<f64, Box<dyn Error>> {
+    let text = client.get(format!("{}/metrics", server.base)).send().await?.text().await?;
+    let line = text
+        .lines()
+        .find(|l| l.split_whitespace().next() == Some(name))
+        .ok_or_else(|| format!("no {name} in /metrics"))?;
+    Ok(line.split_whitespace().nth(1).ok_or("no value")?.parse()?)
+}
+
+async fn worker_busy(client: &reqwest::Client, server: &Server) -> Result<f64, Box<dyn Error>> {
+    metric(client, server, "drape_worker_busy_seconds_total").await
+}
+
+async fn workers(client: &reqwest::Client, server: &Server) -> Result<f64, Box<dyn Error>> {
+    metric(client, server, "drape_workers").await
+}
+
+/// `2026-11-22T03:50:29.123Z` as milliseconds since the Unix epoch.
+fn epoch_ms(timestamp: &str) -> Result<f64, Box<dyn Error>> {
+    let number = |range: std::ops::Range<usize>| -> Result<i64, Box<dyn Error>> {
+        Ok(timestamp.get(range).ok_or("a short timestamp")?.parse::<i64>()?)
+    };
+    let (year, month, day) = (number(0..4)?, number(5..7)?, number(8..10)?);
+    let (h, m, s, ms) = (number(11..13)?, number(14..16)?, number(17..19)?, number(20..23)?);
+    // Days since 1970-01-01 of a civil date (Howard Hinnant's algorithm).
+    let y = if month <= 2 { year - 1 } else { year };
+    let era = y.div_euclid(400);
+    let yoe = y - era * 400;
+    let doy = (153 * (month + if month > 2 { -3 } else { 9 }) + 2) / 5 + day - 1;
+    let doe = yoe * 365 + yoe / 4 - yoe / 100 + doy;
+    let days = era * 146_097 + doe - 719_468;
+    Ok((((days * 24 + h) * 60 + m) * 60 + s) as f64 * 1e3 + ms as f64)
+}
