@@ -67,6 +67,8 @@ struct Band<T> {
     ring: [Vec<T>; 3],
     /// One family's spring forces along a row, per axis.
     row_forces: [Vec<T>; 3],
+    /// Per column: `Σ m |v|²` and `Σ (x + y + z)` over the band's rows, for the stability watch.
+    columns: [Vec<T>; 2],
 }
 
 /// What a band does with its rows' forces. Rows are numbered from the band's first.
@@ -157,6 +159,7 @@ impl<T: Real> GridSprings<T> {
                 rows: b * band_rows..((b + 1) * band_rows).min(layout.ny),
                 ring: std::array::from_fn(|_| vec![T::ZERO; (layout.reach + 1) * layout.stride()]),
                 row_forces: std::array::from_fn(|_| vec![T::ZERO; layout.stride()]),
+                columns: std::array::from_fn(|_| vec![T::ZERO; layout.nx]),
             })
             .collect();
         Self { first, springs, layout, band_rows, bands }
@@ -212,7 +215,7 @@ impl<T: Real> GridSprings<T> {
         let layout = &self.layout;
         let [px, py, pz] = next.positions.range_mut(range.clone());
         let [vx, vy, vz] = next.velocities.range_mut(range);
-        let update = |first_row: usize, positions, velocities| SymplecticUpdate {
+        let update = |first_row: usize, positions, velocities, columns| SymplecticUpdate {
             offset: first_row * nx,
             nx,
             x,
@@ -224,12 +227,12 @@ impl<T: Real> GridSprings<T> {
             h: inputs.h,
             positions,
             velocities,
-            sums: (T::ZERO, T::ZERO),
+            columns,
         };
         if let [band] = self.bands.as_mut_slice() {
-            let mut sink = update(0, [px, py, pz], [vx, vy, vz]);
+            let mut sink = update(0, [px, py, pz], [vx, vy, vz], band.take_columns());
             band.sweep(layout, x, v, &mut sink);
-            return sink.sums;
+            return band.put_back_columns(sink.columns);
         }
         let chunk = self.band_rows * nx;
         let outputs = (
@@ -244,15 +247,32 @@ impl<T: Real> GridSprings<T> {
         (self.bands.par_iter_mut(), band_sums.par_iter_mut(), outputs.into_par_iter())
             .into_par_iter()
             .for_each(|(band, sums, (px, py, pz, vx, vy, vz))| {
-                let mut sink = update(band.rows.start, [px, py, pz], [vx, vy, vz]);
+                let mut sink = update(band.rows.start, [px, py, pz], [vx, vy, vz], band.take_columns());
                 band.sweep(layout, x, v, &mut sink);
-                *sums = sink.sums;
+                *sums = band.put_back_columns(sink.columns);
             });
         band_sums.iter().fold((T::ZERO, T::ZERO), |(k, p), &(bk, bp)| (k + bk, p + bp))
     }
 }
 
 impl<T: Real> Band<T> {
+    /// The band's column sums, zeroed, for a sink to fill.
+    fn take_columns(&mut self) -> [Vec<T>; 2] {
+        let mut columns = std::mem::take(&mut self.columns);
+        for column in &mut columns {
+            column.fill(T::ZERO);
+        }
+        columns
+    }
+
+    /// Keeps the column sums for the next step and returns their totals, summed column by column.
+    fn put_back_columns(&mut self, columns: [Vec<T>; 2]) -> (T, T) {
+        let total = |column: &Vec<T>| column.iter().fold(T::ZERO, |sum, &c| sum + c);
+        let sums = (total(&columns[0]), total(&columns[1]));
+        self.columns = columns;
+        sums
+    }
+
     /// Evaluates every spring that reaches the band's rows, row after row, handing each row's
     /// total force to `sink` as soon as it is complete.
     fn sweep(&mut self, layout: &Layout<T>, x: [&[T]; 3], v: [&[T]; 3], sink: &mut impl RowSink<T>) {
@@ -404,7 +424,10 @@ struct SymplecticUpdate<'a, T> {
     /// The band's new positions and velocities.
     positions: [&'a mut [T]; 3],
     velocities: [&'a mut [T]; 3],
-    sums: (T, T),
+    /// Per column, summed over rows: `Σ m |v|²` and `Σ (x + y + z)`. Summing down the columns
+    /// keeps the loop a plain element-wise one, which vectorises, where a sum along the row would
+    /// not.
+    columns: [Vec<T>; 2],
 }
 
 impl<T: Real> RowSink<T> for SymplecticUpdate<'_, T> {
@@ -439,34 +462,17 @@ impl<T: Real> RowSink<T> for SymplecticUpdate<'_, T> {
         }
         let [px, py, pz] = self.positions.each_ref().map(|axis| &axis[local.clone()]);
         let [vx, vy, vz] = self.velocities.each_ref().map(|axis| &axis[local.clone()]);
-        let (kinetic, position) = lane_sums(&self.masses[cells], [vx, vy, vz], [px, py, pz]);
-        self.sums.0 += kinetic;
-        self.sums.1 += position;
-    }
-}
-
-/// `Σ m |v|²` and `Σ (x + y + z)` over a row, summed in eight interleaved lanes (so the loop
-/// vectorises) and then lane by lane: a fixed order, hence deterministic.
-#[inline]
-fn lane_sums<T: Real>(masses: &[T], v: [&[T]; 3], x: [&[T]; 3]) -> (T, T) {
-    let n = masses.len();
-    let [vx, vy, vz] = v.map(|axis| &axis[..n]);
-    let [px, py, pz] = x.map(|axis| &axis[..n]);
-    let mut kinetic = [T::ZERO; LANES];
-    let mut position = [T::ZERO; LANES];
-    let full = n - n % LANES;
-    for start in (0..full).step_by(LANES) {
-        for lane in 0..LANES {
-            let k = start + lane;
-            kinetic[lane] += masses[k] * (vx[k] * vx[k] + vy[k] * vy[k] + vz[k] * vz[k]);
-            position[lane] += px[k] + py[k] + pz[k];
+        let [kinetic, position] = &mut self.columns;
+        let velocities = vx.iter().zip(vy).zip(vz);
+        let positions = px.iter().zip(py).zip(pz);
+        let sums = kinetic.iter_mut().zip(position.iter_mut()).zip(&self.masses[cells]);
+        for (((kinetic, position), &m), (((&vx, &vy), &vz), ((&x, &y), &z))) in
+            sums.zip(velocities.zip(positions))
+        {
+            *kinetic += m * (vx * vx + vy * vy + vz * vz);
+            *position += x + y + z;
         }
     }
-    for k in full..n {
-        kinetic[0] += masses[k] * (vx[k] * vx[k] + vy[k] * vy[k] + vz[k] * vz[k]);
-        position[0] += px[k] + py[k] + pz[k];
-    }
-    (kinetic.into_iter().fold(T::ZERO, |s, k| s + k), position.into_iter().fold(T::ZERO, |s, p| s + p))
 }
 
 /// The grid records of a model whose springs this module can evaluate.
