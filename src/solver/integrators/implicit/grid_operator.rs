@@ -1,0 +1,431 @@
+//! The implicit system of a grid cloth as a symmetric block stencil, stored row by row.
+//!
+//! On a grid of `nx × ny` particles the system `A = M + Σ_s (e_i - e_j)(e_i - e_j)ᵀ ⊗ S_s` has a
+//! 3×3 diagonal block per particle and one symmetric 3×3 coupling block `-S_s` per spring. Every
+//! spring family of the stencil joins `p` to `p + off` for one offset `off`, so the couplings are
+//! stored per offset, indexed by the lower particle `p`, as six per-entry arrays
+//! (`[xx, yy, zz, xy, xz, yz]`). A product `y = A x` is then a gather: each row of `y` is its
+//! diagonal term plus, for every offset, the coupling at `p` times `x[p + off]` and the coupling
+//! at `p - off` times `x[p - off]`. Along a grid row those are contiguous slices, so every inner
+//! loop runs over plain arrays and vectorises, and every `y[p]` is summed in one fixed order:
+//! the result does not depend on how rows are split.
+//!
+//! The same type serves every level of the multigrid hierarchy: a coarse level is the same cloth
+//! rediscretised on every other particle, with its own positions, lumped masses and doubled rest
+//! lengths.
+
+use super::super::super::Real;
+use super::super::super::sym3::Sym3;
+
+/// A vector field over the particles, one array per axis.
+pub(crate) type Field<T> = [Vec<T>; 3];
+
+/// A field of zeros over `n` particles.
+pub(crate) fn zero_field<T: Real>(n: usize) -> Field<T> {
+    std::array::from_fn(|_| vec![T::ZERO; n])
+}
+
+/// One spring family of a grid: every spring joins particle `p` to `p + offset` (grid steps
+/// `[di, dj]`, with `dj > 0`, or `dj == 0` and `di > 0`), with shared parameters.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Family<T> {
+    pub offset: [isize; 2],
+    pub rest_length: T,
+    pub stiffness: T,
+    pub damping: T,
+}
+
+/// What the fine level adds to an assembly: the velocities and the right-hand side to which
+/// each spring adds `∓h² K (v_i - v_j)`.
+pub(crate) struct RightHandSide<'a, T> {
+    pub velocities: &'a Field<T>,
+    pub rhs: &'a mut Field<T>,
+}
+
+/// A symmetric block stencil operator on an `nx × ny` grid, with its block-Jacobi smoother.
+#[derive(Debug)]
+pub(crate) struct GridOperator<T> {
+    pub nx: usize,
+    pub ny: usize,
+    /// The distinct offsets of the couplings.
+    offsets: Vec<[isize; 2]>,
+    /// For each family, the index of its offset.
+    family_slots: Vec<usize>,
+    /// Per particle: the diagonal block.
+    diagonal: [Vec<T>; 6],
+    /// Per offset, per lower particle `p`: the block `A[p, p + off]`.
+    couplings: Vec<[Vec<T>; 6]>,
+    /// Per particle: `ω D⁻¹`, the damped block-Jacobi smoother.
+    smoother: [Vec<T>; 6],
+    /// Particles held fixed: their rows and columns are decoupled (only the mass on the diagonal).
+    pub pinned: Vec<usize>,
+    /// Per-row scratch for the right-hand side's spring terms.
+    pull: Field<T>,
+}
+
+/// The smoother's damping `ω`: the block-Jacobi iteration matrix `I - ω D⁻¹ A` has spectral
+/// radius below one since `λ(D⁻¹A) ≤ 2` for a sum of positive semi-definite spring blocks.
+const JACOBI_DAMPING: f64 = 0.7;
+
+/// Below this squared length a spring has no direction and contributes nothing.
+const TINY_SQUARED_LENGTH: f64 = 1e-30;
+
+impl<T: Real> GridOperator<T> {
+    pub fn new(nx: usize, ny: usize, families: &[Family<T>], pinned: Vec<usize>) -> Self {
+        let n = nx * ny;
+        let mut offsets: Vec<[isize; 2]> = Vec::new();
+        let mut family_slots = Vec::with_capacity(families.len());
+        for family in families {
+            let slot = offsets.iter().position(|&o| o == family.offset).unwrap_or_else(|| {
+                offsets.push(family.offset);
+                offsets.len() - 1
+            });
+            family_slots.push(slot);
+        }
+        let blocks = || std::array::from_fn(|_| vec![T::ZERO; n]);
+        Self {
+            nx,
+            ny,
+            couplings: offsets.iter().map(|_| blocks()).collect(),
+            offsets,
+            family_slots,
+            diagonal: blocks(),
+            smoother: blocks(),
+            pinned,
+            pull: zero_field(nx),
+        }
+    }
+
+    /// The number of particles.
+    pub fn len(&self) -> usize {
+        self.nx * self.ny
+    }
+
+    /// Builds `M + h D + h² K` at `positions` (`mass` per particle, already including drag),
+    /// with spring rest lengths scaled by `rest_scale`, and the smoother. With `rhs`, also adds
+    /// `-h² K v` to the right-hand side.
+    pub fn assemble(
+        &mut self,
+        positions: &Field<T>,
+        mass: &[T],
+        families: &[Family<T>],
+        rest_scale: T,
+        h: T,
+        mut rhs: Option<RightHandSide<'_, T>>,
+    ) {
+        let (nx, ny) = (self.nx, self.ny);
+        let [dxx, dyy, dzz, dxy, dxz, dyz] = &mut self.diagonal;
+        for (p, &m) in mass.iter().enumerate() {
+            (dxx[p], dyy[p], dzz[p]) = (m, m, m);
+            (dxy[p], dxz[p], dyz[p]) = (T::ZERO, T::ZERO, T::ZERO);
+        }
+        for (f, (family, &slot)) in families.iter().zip(&self.family_slots).enumerate() {
+            // The first family of an offset stores its blocks, any later one adds to them.
+            let accumulate = self.family_slots[..f].contains(&slot);
+            let [di, dj] = family.offset;
+            let (i0, i1) = (0.max(-di) as usize, (nx as isize).min(nx as isize - di).max(0) as usize);
+            if i1 <= i0 || dj as usize >= ny {
+                continue;
+            }
+            let len = i1 - i0;
+            let shift = dj * nx as isize + di;
+            let spring = SpringCoefficients {
+                rest_length: family.rest_length * rest_scale,
+                h_damping: h * family.damping,
+                h2_stiffness: h * h * family.stiffness,
+            };
+            for j in 0..ny - dj as usize {
+                let p = j * nx + i0;
+                let q = (p as isize + shift) as usize;
+                let xp = positions.each_ref().map(|a| &a[p..p + len]);
+                let xq = positions.each_ref().map(|a| &a[q..q + len]);
+                let coupling = self.couplings[slot].each_mut().map(|a| &mut a[p..p + len]);
+                match rhs.as_mut() {
+                    Some(RightHandSide { velocities, rhs }) => {
+                        let vp = velocities.each_ref().map(|a| &a[p..p + len]);
+                        let vq = velocities.each_ref().map(|a| &a[q..q + len]);
+                        let pull = self.pull.each_mut().map(|a| &mut a[..len]);
+                        if accumulate {
+                            spring_row::<T, true, true>(&spring, xp, xq, coupling, Some((vp, vq, pull)));
+                        } else {
+                            spring_row::<T, false, true>(&spring, xp, xq, coupling, Some((vp, vq, pull)));
+                        }
+                        for (axis, pull) in rhs.iter_mut().zip(&self.pull) {
+                            sub_assign(&mut axis[p..p + len], &pull[..len]);
+                            add_assign(&mut axis[q..q + len], &pull[..len]);
+                        }
+                    }
+                    None if accumulate => spring_row::<T, true, false>(&spring, xp, xq, coupling, None),
+                    None => spring_row::<T, false, false>(&spring, xp, xq, coupling, None),
+                }
+            }
+        }
+        // The diagonal is the mass plus every spring block at the particle (`-` the couplings),
+        // added once per family so that shared offsets are not counted twice.
+        for (slot, &[di, dj]) in self.offsets.iter().enumerate() {
+            let (i0, i1) = (0.max(-di) as usize, (nx as isize).min(nx as isize - di).max(0) as usize);
+            if i1 <= i0 || dj as usize >= ny {
+                continue;
+            }
+            let len = i1 - i0;
+            let shift = dj * nx as isize + di;
+            for j in 0..ny - dj as usize {
+                let p = j * nx + i0;
+                let q = (p as isize + shift) as usize;
+                for (d, c) in self.diagonal.iter_mut().zip(&self.couplings[slot]) {
+                    sub_assign(&mut d[p..p + len], &c[p..p + len]);
+                    sub_assign(&mut d[q..q + len], &c[p..p + len]);
+                }
+            }
+        }
+        self.decouple_pinned(mass);
+        let omega = T::from_f64(JACOBI_DAMPING);
+        for p in 0..self.len() {
+            let block = Sym3::from_entries(self.diagonal.each_ref().map(|a| a[p]));
+            let entries = (block.inverse() * omega).entries();
+            for (s, e) in self.smoother.iter_mut().zip(entries) {
+                s[p] = e;
+            }
+        }
+    }
+
+    /// Zeroes the couplings of pinned particles and sets their diagonal to their mass, so that
+    /// the system on the free particles is the filtered one and pinned rows stay decoupled.
+    fn decouple_pinned(&mut self, mass: &[T]) {
+        let (nx, ny) = (self.nx as isize, self.ny as isize);
+        let inside = |i: isize, j: isize| (0..nx).contains(&i) && (0..ny).contains(&j);
+        for &p in &self.pinned {
+            let (i, j) = ((p % self.nx) as isize, (p / self.nx) as isize);
+            for (&[di, dj], coupling) in self.offsets.iter().zip(&mut self.couplings) {
+                // The coupling to `p + off` is stored at `p`, the one to `p - off` at `p - off`.
+                let stored_at = [(i, j, (i + di, j + dj)), (i - di, j - dj, (i - di, j - dj))];
+                for (li, lj, (oi, oj)) in stored_at {
+                    if inside(oi, oj) {
+                        let lower = (lj * nx + li) as usize;
+                        for entry in coupling.iter_mut() {
+                            entry[lower] = T::ZERO;
+                        }
+                    }
+                }
+            }
+            let m = mass[p];
+            for (entry, value) in self.diagonal.iter_mut().zip([m, m, m, T::ZERO, T::ZERO, T::ZERO]) {
+                entry[p] = value;
+            }
+        }
+    }
+
+    /// `y = A x`, or `y = b - A x` with `b`, on the rows `rows` of the grid; `y` holds exactly
+    /// those rows.
+    fn apply_rows(&self, x: &Field<T>, b: Option<&Field<T>>, y: [&mut [T]; 3], rows: std::ops::Range<usize>) {
+        let nx = self.nx;
+        let [y0, y1, y2] = y;
+        for j in rows.clone() {
+            let local = (j - rows.start) * nx;
+            let yr = [&mut y0[local..local + nx], &mut y1[local..local + nx], &mut y2[local..local + nx]];
+            let p = j * nx;
+            let xr = x.each_ref().map(|a| &a[p..p + nx]);
+            let d = self.diagonal.each_ref().map(|a| &a[p..p + nx]);
+            block_products::<T, false>(yr, d, xr);
+            for (&[di, dj], coupling) in self.offsets.iter().zip(&self.couplings) {
+                let dj = dj as usize;
+                // A[p, p + off] x[p + off] on the columns where p + off is on the grid.
+                let (i0, i1) = (0.max(-di) as usize, (nx as isize).min(nx as isize - di).max(0) as usize);
+                if j + dj < self.ny && i1 > i0 {
+                    let (p, len) = (j * nx + i0, i1 - i0);
+                    let q = p + dj * nx;
+                    let q = (q as isize + di) as usize;
+                    let yr = [
+                        &mut y0[local + i0..local + i1],
+                        &mut y1[local + i0..local + i1],
+                        &mut y2[local + i0..local + i1],
+                    ];
+                    let c = coupling.each_ref().map(|a| &a[p..p + len]);
+                    block_products::<T, true>(yr, c, x.each_ref().map(|a| &a[q..q + len]));
+                }
+                // A[p, p - off] x[p - off] = A[p - off, p]ᵀ x[p - off]; the blocks are symmetric.
+                let (i0, i1) = (0.max(di) as usize, (nx as isize).min(nx as isize + di).max(0) as usize);
+                if j >= dj && i1 > i0 {
+                    let len = i1 - i0;
+                    let q = ((j - dj) * nx + i0) as isize - di;
+                    let q = q as usize;
+                    let yr = [
+                        &mut y0[local + i0..local + i1],
+                        &mut y1[local + i0..local + i1],
+                        &mut y2[local + i0..local + i1],
+                    ];
+                    let c = coupling.each_ref().map(|a| &a[q..q + len]);
+                    block_products::<T, true>(yr, c, x.each_ref().map(|a| &a[q..q + len]));
+                }
+            }
+            if let Some(b) = b {
+                for (y, b) in [&mut *y0, &mut *y1, &mut *y2].into_iter().zip(b) {
+                    for (y, &b) in y[local..local + nx].iter_mut().zip(&b[p..p + nx]) {
+                        *y = b - *y;
+                    }
+                }
+            }
+        }
+    }
+
+    /// `y = A x`.
+    pub fn apply(&self, x: &Field<T>, y: &mut Field<T>) {
+        let [y0, y1, y2] = y;
+        self.apply_rows(x, None, [y0, y1, y2], 0..self.ny);
+    }
+
+    /// `r = b - A x`.
+    pub fn residual(&self, b: &Field<T>, x: &Field<T>, r: &mut Field<T>) {
+        let [r0, r1, r2] = r;
+        self.apply_rows(x, Some(b), [r0, r1, r2], 0..self.ny);
+    }
+
+    /// `x = ω D⁻¹ b`: one smoothing sweep from a zero guess.
+    pub fn smooth_from_zero(&self, b: &Field<T>, x: &mut Field<T>) {
+        let [x0, x1, x2] = x;
+        block_products::<T, false>(
+            [x0, x1, x2],
+            self.smoother.each_ref().map(|a| a.as_slice()),
+            b.each_ref().map(|a| a.as_slice()),
+        );
+    }
+
+    /// `x += ω D⁻¹ (b - A x)`: one damped block-Jacobi sweep, with `r` as scratch.
+    pub fn smooth(&self, b: &Field<T>, x: &mut Field<T>, r: &mut Field<T>) {
+        self.residual(b, x, r);
+        let [x0, x1, x2] = x;
+        block_products::<T, true>(
+            [x0, x1, x2],
+            self.smoother.each_ref().map(|a| a.as_slice()),
+            r.each_ref().map(|a| a.as_slice()),
+        );
+    }
+
+    /// The block `A[p, q]` for `q` equal to `p` or one stencil offset away (zero otherwise).
+    pub fn block(&self, p: usize, q: usize) -> Sym3<T> {
+        if p == q {
+            return Sym3::from_entries(self.diagonal.each_ref().map(|a| a[p]));
+        }
+        let (lower, upper) = (p.min(q), p.max(q));
+        let (li, lj) = ((lower % self.nx) as isize, (lower / self.nx) as isize);
+        let (ui, uj) = ((upper % self.nx) as isize, (upper / self.nx) as isize);
+        let offset = [ui - li, uj - lj];
+        match self.offsets.iter().position(|&o| o == offset) {
+            Some(slot) => Sym3::from_entries(self.couplings[slot].each_ref().map(|a| a[lower])),
+            None => Sym3::ZERO,
+        }
+    }
+
+    /// The stencil offsets, for walking the couplings of a particle.
+    pub fn offsets(&self) -> &[[isize; 2]] {
+        &self.offsets
+    }
+}
+
+/// One family's coefficients in the step's units.
+struct SpringCoefficients<T> {
+    rest_length: T,
+    h_damping: T,
+    h2_stiffness: T,
+}
+
+/// The coupling blocks `-S = -(h D + h² K)` of one row of springs from `p` to `q`, stored (or,
+/// with `ACCUMULATE`, added); with `PULL`, also `h² K (v_p - v_q)` per spring.
+///
+/// `S = (h c + h² k (1 - α)) n nᵀ + h² k α I` with `α = max(0, 1 - L/l)`, written branch-free
+/// so that the loop vectorises: a spring without a direction gets `n = 0` and `α = 0`, so `S = 0`.
+#[inline(always)]
+#[allow(clippy::type_complexity)]
+fn spring_row<T: Real, const ACCUMULATE: bool, const PULL: bool>(
+    spring: &SpringCoefficients<T>,
+    xp: [&[T]; 3],
+    xq: [&[T]; 3],
+    coupling: [&mut [T]; 6],
+    pull: Option<([&[T]; 3], [&[T]; 3], [&mut [T]; 3])>,
+) {
+    let len = coupling[0].len();
+    let [xp0, xp1, xp2] = xp.map(|a| &a[..len]);
+    let [xq0, xq1, xq2] = xq.map(|a| &a[..len]);
+    let [cxx, cyy, czz, cxy, cxz, cyz] = coupling.map(|a| &mut a[..len]);
+    let tiny = T::from_f64(TINY_SQUARED_LENGTH);
+    let (rest, hc, h2k) = (spring.rest_length, spring.h_damping, spring.h2_stiffness);
+    let (vp, vq, out) = match pull {
+        Some((vp, vq, out)) => (vp, vq, out),
+        None => ([&[][..]; 3], [&[][..]; 3], [&mut [][..], &mut [][..], &mut [][..]]),
+    };
+    let [vp0, vp1, vp2] = vp.map(|a| if PULL { &a[..len] } else { a });
+    let [vq0, vq1, vq2] = vq.map(|a| if PULL { &a[..len] } else { a });
+    let [o0, o1, o2] = out.map(|a| if PULL { &mut a[..len] } else { a });
+    for k in 0..len {
+        let (dx, dy, dz) = (xq0[k] - xp0[k], xq1[k] - xp1[k], xq2[k] - xp2[k]);
+        let l2 = dx * dx + dy * dy + dz * dz;
+        let valid = l2 > tiny;
+        let inverse_length = if valid { T::ONE / l2.sqrt() } else { T::ZERO };
+        let (nx, ny, nz) = (dx * inverse_length, dy * inverse_length, dz * inverse_length);
+        let alpha = if valid { (T::ONE - rest * inverse_length).max(T::ZERO) } else { T::ZERO };
+        let along = hc + h2k * (T::ONE - alpha);
+        let iso = h2k * alpha;
+        let (sxx, syy, szz) = (along * nx * nx + iso, along * ny * ny + iso, along * nz * nz + iso);
+        let (sxy, sxz, syz) = (along * nx * ny, along * nx * nz, along * ny * nz);
+        if ACCUMULATE {
+            cxx[k] -= sxx;
+            cyy[k] -= syy;
+            czz[k] -= szz;
+            cxy[k] -= sxy;
+            cxz[k] -= sxz;
+            cyz[k] -= syz;
+        } else {
+            cxx[k] = -sxx;
+            cyy[k] = -syy;
+            czz[k] = -szz;
+            cxy[k] = -sxy;
+            cxz[k] = -sxz;
+            cyz[k] = -syz;
+        }
+        if PULL {
+            let (wx, wy, wz) = (vp0[k] - vq0[k], vp1[k] - vq1[k], vp2[k] - vq2[k]);
+            let axial = h2k * (T::ONE - alpha) * (nx * wx + ny * wy + nz * wz);
+            o0[k] = axial * nx + iso * wx;
+            o1[k] = axial * ny + iso * wy;
+            o2[k] = axial * nz + iso * wz;
+        }
+    }
+}
+
+/// `y = A x` (or `y += A x` with `ADD`) for a run of symmetric blocks `a`.
+#[inline(always)]
+fn block_products<T: Real, const ADD: bool>(y: [&mut [T]; 3], a: [&[T]; 6], x: [&[T]; 3]) {
+    let len = y[0].len();
+    let [y0, y1, y2] = y.map(|s| &mut s[..len]);
+    let [axx, ayy, azz, axy, axz, ayz] = a.map(|s| &s[..len]);
+    let [x0, x1, x2] = x.map(|s| &s[..len]);
+    for k in 0..len {
+        let (u, v, w) = (x0[k], x1[k], x2[k]);
+        let r0 = axx[k] * u + axy[k] * v + axz[k] * w;
+        let r1 = axy[k] * u + ayy[k] * v + ayz[k] * w;
+        let r2 = axz[k] * u + ayz[k] * v + azz[k] * w;
+        if ADD {
+            y0[k] += r0;
+            y1[k] += r1;
+            y2[k] += r2;
+        } else {
+            y0[k] = r0;
+            y1[k] = r1;
+            y2[k] = r2;
+        }
+    }
+}
+
+#[inline(always)]
+fn add_assign<T: Real>(a: &mut [T], b: &[T]) {
+    for (a, &b) in a.iter_mut().zip(b) {
+        *a += b;
+    }
+}
+
+#[inline(always)]
+fn sub_assign<T: Real>(a: &mut [T], b: &[T]) {
+    for (a, &b) in a.iter_mut().zip(b) {
+        *a -= b;
+    }
+}
