@@ -2,7 +2,7 @@
 //! a multigrid V-cycle.
 //!
 //! A scene that is one cloth and nothing else (every particle on the grid, every spring from its
-//! stencil, one rest length, stiffness and damping per family) has a system that
+//! stencil, one rest length, stiffness and damping per family, one family per offset) has a system that
 //! [`GridOperator`] stores as row stencils and [`Multigrid`] inverts approximately in a few
 //! products. Block Jacobi's iteration count grows with the stiffness ratio `h² k / m` and with
 //! the resolution; one V-cycle removes the error at every wavelength, so the count stays small
@@ -65,11 +65,16 @@ impl<T: Real> GridSolver<T> {
             }
             families.extend(family);
         }
-        if next.next().is_some() || families.iter().any(|f| f.offset == [0, 0]) {
+        let repeated = families.iter().enumerate().any(|(k, f)| families[..k].iter().any(|g| g.offset == f.offset));
+        if next.next().is_some() || repeated || families.iter().any(|f| f.offset == [0, 0]) {
             return None;
         }
         let pinned: Vec<usize> = (0..n).filter(|&p| dynamics.inverse_masses[p] == T::ZERO).collect();
         let multigrid = Multigrid::new(nx, ny, families, &dynamics.masses, pinned.clone())?;
+        if multigrid.system().is_parallel() {
+            // Starts the thread pool now rather than inside a step.
+            rayon::current_num_threads();
+        }
         Some(Self {
             multigrid,
             pinned,
@@ -90,6 +95,17 @@ impl<T: Real> GridSolver<T> {
 
     /// Solves the step's system; `Δv` is then [`delta_v`](Self::delta_v).
     pub fn solve(&mut self, input: &StepInput<'_, T>, tolerance: T, max_iterations: usize) -> SolveOutcome<T> {
+        if self.multigrid.system().is_parallel() {
+            // The whole solve runs on one worker of the pool, so that the parallel products in
+            // it share work through the workers' own queues: each entry into the pool from
+            // outside goes through its shared queue, which allocates a block every 63 entries.
+            rayon::scope(|_| self.solve_here(input, tolerance, max_iterations))
+        } else {
+            self.solve_here(input, tolerance, max_iterations)
+        }
+    }
+
+    fn solve_here(&mut self, input: &StepInput<'_, T>, tolerance: T, max_iterations: usize) -> SolveOutcome<T> {
         let h = input.h;
         for (rhs, force) in self.rhs.iter_mut().zip(input.forces) {
             for (r, &f) in rhs.iter_mut().zip(force) {

@@ -404,3 +404,4 @@ impl DenseCholesky {
         }
     }
 }
+
