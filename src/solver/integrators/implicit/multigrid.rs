@@ -405,3 +405,97 @@ impl DenseCholesky {
     }
 }
 
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A deterministic field of values in [-1, 1].
+    fn wiggle(n: usize, seed: f64) -> Vec<f64> {
+        (0..n).map(|p| (p as f64 * 0.7315 + seed).sin()).collect()
+    }
+
+    #[test]
+    fn restriction_is_the_transpose_of_interpolation_on_odd_and_even_grids() {
+        for (nx, ny) in [(7usize, 9usize), (8, 6), (16, 16)] {
+            let (cx, cy) = (nx.div_ceil(2), ny.div_ceil(2));
+            let (fine, coarse) = (wiggle(nx * ny, 0.3), wiggle(cx * cy, 1.1));
+            let mut row = vec![0.0; cx];
+            let mut interpolated = vec![0.0; nx * ny];
+            prolong_add(&coarse, cx, cy, &mut interpolated, nx, ny, &mut row);
+            let mut restricted = vec![0.0; cx * cy];
+            restrict_scalar(&fine, nx, ny, &mut restricted, cx, cy, &mut row);
+            let left: f64 = interpolated.iter().zip(&fine).map(|(a, b)| a * b).sum();
+            let right: f64 = coarse.iter().zip(&restricted).map(|(a, b)| a * b).sum();
+            assert!((left - right).abs() <= 1e-12 * left.abs().max(1.0), "{nx}×{ny}: {left} vs {right}");
+            // Interpolation reproduces a constant, the extrapolated edge included.
+            let mut ones = vec![0.0; nx * ny];
+            prolong_add(&vec![1.0; cx * cy], cx, cy, &mut ones, nx, ny, &mut row);
+            assert!(ones.iter().all(|&v| v == 1.0));
+        }
+    }
+
+    /// A 20×20 cloth of 5 cm spacing with the cloth's six families, bent out of its plane.
+    fn bent_cloth() -> (Multigrid<f64>, Field<f64>, Field<f64>) {
+        let n = 20;
+        let spacing = 0.05;
+        let family = |offset: [isize; 2]| {
+            let length = spacing * ((offset[0] * offset[0] + offset[1] * offset[1]) as f64).sqrt();
+            Family { offset, rest_length: length, stiffness: 5000.0, damping: 0.5 }
+        };
+        let families = vec![family([1, 0]), family([0, 1]), family([1, 1]), family([-1, 1]), family([2, 0]), family([0, 2])];
+        let masses = vec![1.0 / (n * n) as f64; n * n];
+        let mut multigrid = Multigrid::new(n, n, families, &masses, vec![0, n - 1]).unwrap();
+        let mut positions = zero_field(n * n);
+        for p in 0..n * n {
+            let (i, j) = ((p % n) as f64, (p / n) as f64);
+            positions[0][p] = i * spacing * 1.01;
+            positions[1][p] = 0.02 * (0.4 * i).sin() * (0.3 * j).cos();
+            positions[2][p] = j * spacing * 0.99;
+        }
+        let velocities = zero_field(n * n);
+        let mut rhs = zero_field(n * n);
+        multigrid.assemble(&positions, &velocities, &mut rhs, 1.0 / 600.0, 4.0);
+        let vector = |seed: f64| {
+            let mut field: Field<f64> = std::array::from_fn(|a| wiggle(n * n, seed + a as f64));
+            for axis in &mut field {
+                (axis[0], axis[n - 1]) = (0.0, 0.0);
+            }
+            field
+        };
+        (multigrid, vector(0.0), vector(5.0))
+    }
+
+    #[test]
+    fn the_v_cycle_is_symmetric_and_positive_definite() {
+        let (mut multigrid, mut a, mut b) = bent_cloth();
+        assert_eq!(multigrid.depth(), 3);
+        let (mut ba, mut bb) = (zero_field(400), zero_field(400));
+        multigrid.precondition(&mut a, &mut ba);
+        multigrid.precondition(&mut b, &mut bb);
+        let (ab, ba_) = (dot(&a, &bb), dot(&b, &ba));
+        assert!((ab - ba_).abs() <= 1e-10 * ab.abs(), "a·Bb = {ab}, b·Ba = {ba_}");
+        assert!(dot(&a, &ba) > 0.0 && dot(&b, &bb) > 0.0);
+        // Pinned particles stay out of the correction.
+        assert_eq!([ba[0][0], ba[1][19], bb[2][0]], [0.0; 3]);
+    }
+
+    #[test]
+    fn one_v_cycle_removes_most_of_the_error_of_a_stiff_cloth() {
+        let (mut multigrid, x, _) = bent_cloth();
+        // b = A x, then x ≈ B b: a good preconditioner leaves a small error in the energy norm.
+        let mut b = zero_field(400);
+        multigrid.system().apply(&x, &mut b);
+        let mut approximate = zero_field(400);
+        multigrid.precondition(&mut b, &mut approximate);
+        let error: Field<f64> = std::array::from_fn(|a| x[a].iter().zip(&approximate[a]).map(|(u, v)| u - v).collect());
+        let mut a_error = zero_field(400);
+        multigrid.system().apply(&error, &mut a_error);
+        let reduction = (dot(&error, &a_error) / dot(&x, &b)).sqrt();
+        assert!(reduction < 0.5, "the V-cycle leaves {reduction} of the error");
+    }
+
+    fn dot(a: &Field<f64>, b: &Field<f64>) -> f64 {
+        a.iter().zip(b).map(|(a, b)| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>()).sum()
+    }
+}
