@@ -275,12 +275,14 @@ impl<T: Real> GridOperator<T> {
             return;
         }
         let band = self.ny.div_ceil(4 * rayon::current_num_threads()).max(1) * self.nx;
-        y0.par_chunks_mut(band).zip(y1.par_chunks_mut(band)).zip(y2.par_chunks_mut(band)).enumerate().for_each(
-            |(k, ((y0, y1), y2))| {
+        y0.par_chunks_mut(band)
+            .zip(y1.par_chunks_mut(band))
+            .zip(y2.par_chunks_mut(band))
+            .enumerate()
+            .for_each(|(k, ((y0, y1), y2))| {
                 let (first, rows) = (k * band / self.nx, y0.len() / self.nx);
                 self.apply_rows(x, b, [y0, y1, y2], first..first + rows);
-            },
-        );
+            });
     }
 
     /// `y = A x`.

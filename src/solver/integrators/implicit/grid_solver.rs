@@ -54,8 +54,12 @@ impl<T: Real> GridSolver<T> {
                     } else {
                         [-offset[0], -offset[1]]
                     };
-                    let this =
-                        Family { offset, rest_length: s.rest_length, stiffness: s.stiffness, damping: s.damping };
+                    let this = Family {
+                        offset,
+                        rest_length: s.rest_length,
+                        stiffness: s.stiffness,
+                        damping: s.damping,
+                    };
                     match family {
                         None => family = Some(this),
                         Some(f) if f == this => {}
@@ -65,7 +69,8 @@ impl<T: Real> GridSolver<T> {
             }
             families.extend(family);
         }
-        let repeated = families.iter().enumerate().any(|(k, f)| families[..k].iter().any(|g| g.offset == f.offset));
+        let repeated =
+            families.iter().enumerate().any(|(k, f)| families[..k].iter().any(|g| g.offset == f.offset));
         if next.next().is_some() || repeated || families.iter().any(|f| f.offset == [0, 0]) {
             return None;
         }
@@ -94,7 +99,12 @@ impl<T: Real> GridSolver<T> {
     }
 
     /// Solves the step's system; `Δv` is then [`delta_v`](Self::delta_v).
-    pub fn solve(&mut self, input: &StepInput<'_, T>, tolerance: T, max_iterations: usize) -> SolveOutcome<T> {
+    pub fn solve(
+        &mut self,
+        input: &StepInput<'_, T>,
+        tolerance: T,
+        max_iterations: usize,
+    ) -> SolveOutcome<T> {
         if self.multigrid.system().is_parallel() {
             // The whole solve runs on one worker of the pool, so that the parallel products in
             // it share work through the workers' own queues: each entry into the pool from
@@ -105,7 +115,12 @@ impl<T: Real> GridSolver<T> {
         }
     }
 
-    fn solve_here(&mut self, input: &StepInput<'_, T>, tolerance: T, max_iterations: usize) -> SolveOutcome<T> {
+    fn solve_here(
+        &mut self,
+        input: &StepInput<'_, T>,
+        tolerance: T,
+        max_iterations: usize,
+    ) -> SolveOutcome<T> {
         let h = input.h;
         for (rhs, force) in self.rhs.iter_mut().zip(input.forces) {
             for (r, &f) in rhs.iter_mut().zip(force) {

@@ -133,7 +133,9 @@ impl<T: Real> Implicit<T> {
     pub fn step(&mut self, state: &mut State<T>, dynamics: &mut Dynamics<T>, t: f64, h: T) {
         // The one place that reads the state and evaluates the forces.
         dynamics.forces(&state.positions, &state.velocities, t, &mut self.particle_forces);
-        for (p, ((x, v), f)) in state.positions.iter().zip(&state.velocities).zip(&self.particle_forces).enumerate() {
+        for (p, ((x, v), f)) in
+            state.positions.iter().zip(&state.velocities).zip(&self.particle_forces).enumerate()
+        {
             (self.positions[0][p], self.positions[1][p], self.positions[2][p]) = (x.x, x.y, x.z);
             (self.velocities[0][p], self.velocities[1][p], self.velocities[2][p]) = (v.x, v.y, v.z);
             (self.forces[0][p], self.forces[1][p], self.forces[2][p]) = (f.x, f.y, f.z);
@@ -149,9 +151,10 @@ impl<T: Real> Implicit<T> {
         let max_iterations = self.stats.max_iterations;
         let (outcome, delta_v) = match &mut self.solver {
             Solver::Grid(grid) => (grid.solve(&input, self.tolerance, max_iterations), grid.delta_v()),
-            Solver::SpringList(list) => {
-                (list.solve(&input, dynamics, self.tolerance, max_iterations, &mut self.delta_v), &self.delta_v)
-            }
+            Solver::SpringList(list) => (
+                list.solve(&input, dynamics, self.tolerance, max_iterations, &mut self.delta_v),
+                &self.delta_v,
+            ),
         };
         record(&mut self.stats, self.tolerance, outcome);
 
@@ -161,7 +164,6 @@ impl<T: Real> Implicit<T> {
             *x += *v * h;
         }
     }
-
 }
 
 fn record<T: Real>(stats: &mut LinearSolveStats, tolerance: T, outcome: SolveOutcome<T>) {
@@ -187,7 +189,8 @@ pub(crate) fn dot_slices<T: Real>(a: &[T], b: &[T]) -> f64 {
     const LANES: usize = 8;
     let mut lanes = [0.0f64; LANES];
     let (a_chunks, b_chunks) = (a.chunks_exact(LANES), b.chunks_exact(LANES));
-    let tail: f64 = a_chunks.remainder().iter().zip(b_chunks.remainder()).map(|(&x, &y)| x.to_f64() * y.to_f64()).sum();
+    let tail: f64 =
+        a_chunks.remainder().iter().zip(b_chunks.remainder()).map(|(&x, &y)| x.to_f64() * y.to_f64()).sum();
     for (x, y) in a_chunks.zip(b_chunks) {
         for k in 0..LANES {
             lanes[k] += x[k].to_f64() * y[k].to_f64();

@@ -21,9 +21,6 @@ use super::grid_operator::{Family, Field, GridOperator, RightHandSide, zero_fiel
 /// The coarsest level has at most this many particles and is solved directly.
 pub(crate) const COARSEST_PARTICLES: usize = 64;
 
-/// Smoothing sweeps before and after each coarse correction.
-const SWEEPS: usize = 1;
-
 /// One level of the hierarchy with its vectors.
 #[derive(Debug)]
 struct Level<T> {
@@ -53,7 +50,13 @@ pub(crate) struct Multigrid<T> {
 impl<T: Real> Multigrid<T> {
     /// The hierarchy for an `nx × ny` grid, or `None` when the grid cannot be coarsened to a
     /// direct solve (a strip too narrow to halve).
-    pub fn new(nx: usize, ny: usize, families: Vec<Family<T>>, masses: &[T], pinned: Vec<usize>) -> Option<Self> {
+    pub fn new(
+        nx: usize,
+        ny: usize,
+        families: Vec<Family<T>>,
+        masses: &[T],
+        pinned: Vec<usize>,
+    ) -> Option<Self> {
         let mut levels = vec![Level::new(nx, ny, &families, masses.to_vec(), pinned)];
         loop {
             let fine = levels.last()?;
@@ -78,7 +81,14 @@ impl<T: Real> Multigrid<T> {
 
     /// Assembles every level for a step of `h` at `positions`, and the fine right-hand side's
     /// spring terms into `rhs`.
-    pub fn assemble(&mut self, positions: &Field<T>, velocities: &Field<T>, rhs: &mut Field<T>, h: T, drag: T) {
+    pub fn assemble(
+        &mut self,
+        positions: &Field<T>,
+        velocities: &Field<T>,
+        rhs: &mut Field<T>,
+        h: T,
+        drag: T,
+    ) {
         let scale = T::ONE + h * drag;
         let mut rest_scale = T::ONE;
         for l in 0..self.levels.len() {
@@ -98,8 +108,21 @@ impl<T: Real> Multigrid<T> {
                 ),
                 Some(fine) => {
                     let source = if l == 1 { positions } else { &fine.positions };
-                    inject(source, fine.operator.nx, &mut level.positions, level.operator.nx, level.operator.ny);
-                    level.operator.assemble(&level.positions, &level.mass, &self.families, rest_scale, h, None);
+                    inject(
+                        source,
+                        fine.operator.nx,
+                        &mut level.positions,
+                        level.operator.nx,
+                        level.operator.ny,
+                    );
+                    level.operator.assemble(
+                        &level.positions,
+                        &level.mass,
+                        &self.families,
+                        rest_scale,
+                        h,
+                        None,
+                    );
                 }
             }
             rest_scale = rest_scale + rest_scale;
@@ -130,11 +153,9 @@ impl<T: Real> Multigrid<T> {
             let (finer, coarser) = self.levels.split_at_mut(l + 1);
             let (fine, coarse) = (&mut finer[l], &mut coarser[0]);
             fine.operator.smooth_from_zero(&fine.rhs, &mut fine.solution);
-            for _ in 1..SWEEPS {
-                fine.operator.smooth(&fine.rhs, &mut fine.solution, &mut fine.residual);
-            }
             fine.operator.residual(&fine.rhs, &fine.solution, &mut fine.residual);
-            let (nx, ny, cx, cy) = (fine.operator.nx, fine.operator.ny, coarse.operator.nx, coarse.operator.ny);
+            let (nx, ny, cx, cy) =
+                (fine.operator.nx, fine.operator.ny, coarse.operator.nx, coarse.operator.ny);
             for (fine_axis, (coarse_axis, row)) in
                 fine.residual.iter().zip(coarse.rhs.iter_mut().zip(&mut coarse.row))
             {
@@ -148,16 +169,15 @@ impl<T: Real> Multigrid<T> {
         for l in (0..last).rev() {
             let (finer, coarser) = self.levels.split_at_mut(l + 1);
             let (fine, coarse) = (&mut finer[l], &mut coarser[0]);
-            let (nx, ny, cx, cy) = (fine.operator.nx, fine.operator.ny, coarse.operator.nx, coarse.operator.ny);
+            let (nx, ny, cx, cy) =
+                (fine.operator.nx, fine.operator.ny, coarse.operator.nx, coarse.operator.ny);
             for (fine_axis, (coarse_axis, row)) in
                 fine.solution.iter_mut().zip(coarse.solution.iter().zip(&mut coarse.row))
             {
                 prolong_add(coarse_axis, cx, cy, fine_axis, nx, ny, row);
             }
             zero_pinned(&mut fine.solution, &fine.operator.pinned);
-            for _ in 0..SWEEPS {
-                fine.operator.smooth(&fine.rhs, &mut fine.solution, &mut fine.residual);
-            }
+            fine.operator.smooth(&fine.rhs, &mut fine.solution, &mut fine.residual);
         }
     }
 
@@ -200,8 +220,8 @@ fn parents<T: Real>(i: usize, coarse: usize) -> [(usize, T); 2] {
     let half = T::from_f64(0.5);
     if i % 2 == 0 {
         [(i / 2, T::ONE), (i / 2, T::ZERO)]
-    } else if (i + 1) / 2 < coarse {
-        [(i / 2, half), ((i + 1) / 2, half)]
+    } else if i.div_ceil(2) < coarse {
+        [(i / 2, half), (i.div_ceil(2), half)]
     } else {
         [(i / 2, T::ONE), (i / 2, T::ZERO)]
     }
@@ -405,7 +425,6 @@ impl DenseCholesky {
     }
 }
 
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -443,15 +462,21 @@ mod tests {
             let length = spacing * ((offset[0] * offset[0] + offset[1] * offset[1]) as f64).sqrt();
             Family { offset, rest_length: length, stiffness: 5000.0, damping: 0.5 }
         };
-        let families = vec![family([1, 0]), family([0, 1]), family([1, 1]), family([-1, 1]), family([2, 0]), family([0, 2])];
+        let families = vec![
+            family([1, 0]),
+            family([0, 1]),
+            family([1, 1]),
+            family([-1, 1]),
+            family([2, 0]),
+            family([0, 2]),
+        ];
         let masses = vec![1.0 / (n * n) as f64; n * n];
         let mut multigrid = Multigrid::new(n, n, families, &masses, vec![0, n - 1]).unwrap();
         let mut positions = zero_field(n * n);
-        for p in 0..n * n {
+        let [px, py, pz] = &mut positions;
+        for (p, ((x, y), z)) in px.iter_mut().zip(py.iter_mut()).zip(pz.iter_mut()).enumerate() {
             let (i, j) = ((p % n) as f64, (p / n) as f64);
-            positions[0][p] = i * spacing * 1.01;
-            positions[1][p] = 0.02 * (0.4 * i).sin() * (0.3 * j).cos();
-            positions[2][p] = j * spacing * 0.99;
+            (*x, *y, *z) = (i * spacing * 1.01, 0.02 * (0.4 * i).sin() * (0.3 * j).cos(), j * spacing * 0.99);
         }
         let velocities = zero_field(n * n);
         let mut rhs = zero_field(n * n);
@@ -488,7 +513,8 @@ mod tests {
         multigrid.system().apply(&x, &mut b);
         let mut approximate = zero_field(400);
         multigrid.precondition(&mut b, &mut approximate);
-        let error: Field<f64> = std::array::from_fn(|a| x[a].iter().zip(&approximate[a]).map(|(u, v)| u - v).collect());
+        let error: Field<f64> =
+            std::array::from_fn(|a| x[a].iter().zip(&approximate[a]).map(|(u, v)| u - v).collect());
         let mut a_error = zero_field(400);
         multigrid.system().apply(&error, &mut a_error);
         let reduction = (dot(&error, &a_error) / dot(&x, &b)).sqrt();

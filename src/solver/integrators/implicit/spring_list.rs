@@ -128,7 +128,12 @@ impl<T: Real> SpringListSolver<T> {
     }
 
     /// Preconditioned conjugate gradients from the previous solution.
-    fn conjugate_gradients(&mut self, dynamics: &Dynamics<T>, tolerance: T, max_iterations: usize) -> SolveOutcome<T> {
+    fn conjugate_gradients(
+        &mut self,
+        dynamics: &Dynamics<T>,
+        tolerance: T,
+        max_iterations: usize,
+    ) -> SolveOutcome<T> {
         let rhs_norm = dot(&self.rhs, &self.rhs).sqrt();
         if rhs_norm == T::ZERO {
             self.delta_v.fill(Vec3::ZERO);
@@ -186,10 +191,15 @@ fn dot<T: Real>(a: &[Vec3<T>], b: &[Vec3<T>]) -> T {
 impl<T: Real> SpringListSolver<T> {
     /// `|b - A Δv| / |b|` of the step's system for a given `Δv`, computed afresh from the spring
     /// list.
-    pub fn relative_residual_of(&mut self, input: &StepInput<'_, T>, dynamics: &Dynamics<T>, delta_v: &Field<T>) -> f64 {
+    pub fn relative_residual_of(
+        &mut self,
+        input: &StepInput<'_, T>,
+        dynamics: &Dynamics<T>,
+        delta_v: &Field<T>,
+    ) -> f64 {
         self.assemble(input, dynamics);
-        for p in 0..self.search.len() {
-            self.search[p] = Vec3::new(delta_v[0][p], delta_v[1][p], delta_v[2][p]);
+        for (p, s) in self.search.iter_mut().enumerate() {
+            *s = Vec3::new(delta_v[0][p], delta_v[1][p], delta_v[2][p]);
         }
         self.apply_system(dynamics);
         let (mut residual, mut rhs) = (0.0, 0.0);

@@ -127,8 +127,10 @@ fn multigrid_and_block_jacobi_agree_on_the_step() {
     grid.step(&mut a, &mut dynamics, 0.0, H);
     list.step(&mut b, &mut dynamics, 0.0, H);
     assert_eq!(list.stats().unconverged_solves, 0);
-    let largest = state.velocities.iter().zip(&b.velocities).map(|(v0, v1)| (*v1 - *v0).length()).fold(0.0, f64::max);
-    let difference = a.velocities.iter().zip(&b.velocities).map(|(u, v)| (*u - *v).length()).fold(0.0, f64::max);
+    let largest =
+        state.velocities.iter().zip(&b.velocities).map(|(v0, v1)| (*v1 - *v0).length()).fold(0.0, f64::max);
+    let difference =
+        a.velocities.iter().zip(&b.velocities).map(|(u, v)| (*u - *v).length()).fold(0.0, f64::max);
     assert!(largest > 1e-3, "the step changes the velocities ({largest})");
     assert!(difference <= 1e-6 * largest, "Δv differs by {difference} of {largest}");
     for &corner in &[0, 31] {
