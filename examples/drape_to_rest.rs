@@ -27,7 +27,8 @@
 use std::time::{Duration, Instant};
 
 use drape::solver::{
-    Cloth, Config, IntegratorKind, IntegratorSettings, Model, Orientation, Real, Simulation, SpringParams, State,
+    Cloth, Config, IntegratorKind, IntegratorSettings, Model, Orientation, Real, Simulation, SpringParams,
+    State,
 };
 use glam::DVec3;
 
@@ -138,8 +139,11 @@ fn main() {
 
     let implicit = run_to_rest("implicit Euler", IntegratorKind::ImplicitEuler, implicit_dt, drag);
     let explicit = run_to_rest("symplectic Euler", IntegratorKind::SymplecticEuler, explicit_dt, drag);
-    let equilibrium = run_until("equilibrium", IntegratorKind::ImplicitEuler, implicit_dt, drag, EQUILIBRIUM_SPEED);
-    let distance = |a: &Run, b: &Run| a.positions.iter().zip(&b.positions).map(|(a, b)| a.distance(*b)).fold(0.0, f64::max);
+    let equilibrium =
+        run_until("equilibrium", IntegratorKind::ImplicitEuler, implicit_dt, drag, EQUILIBRIUM_SPEED);
+    let distance = |a: &Run, b: &Run| {
+        a.positions.iter().zip(&b.positions).map(|(a, b)| a.distance(*b)).fold(0.0, f64::max)
+    };
 
     println!(
         "64×64 cloth pinned at its four corners (k = 5000 N/m, c = 0.5 N·s/m, drag {drag} 1/s), f64, \
@@ -151,7 +155,8 @@ fn main() {
     );
     println!("| --- | --- | --- | --- | --- | --- | --- | --- | --- |");
     for run in [&implicit, &explicit] {
-        let iterations = run.iterations.map_or("–".to_string(), |(mean, most)| format!("{mean:.1} ({most})"));
+        let iterations =
+            run.iterations.map_or("–".to_string(), |(mean, most)| format!("{mean:.1} ({most})"));
         println!(
             "| {} | {:.3e} | {} | {:.3} | {} | {:.2e} | {} | {:.3} | {:.3} |",
             run.name,

@@ -47,8 +47,8 @@ fn a_single_cloth_takes_the_multigrid_path_and_anything_else_the_spring_list() {
     let (_, dynamics) = start::<f64>(&model, drag);
     let implicit = Implicit::new(&dynamics, settings(1e-6, 200));
     let Solver::Grid(grid) = &implicit.solver else { panic!("a lone cloth has a grid solver") };
-    // 32 → 16 → 8: the coarsest level has 64 particles.
-    assert_eq!(grid.depth(), 3);
+    // 32 → 16 → 8 → 4: the coarsest level has 16 particles.
+    assert_eq!(grid.depth(), 4);
 
     let mut two = model.clone();
     two.add_cloth(&Cloth { center: DVec3::new(3.0, 1.0, 0.0), pins: vec![], ..cloth_of(&model) });
