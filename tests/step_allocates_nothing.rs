@@ -90,3 +90,23 @@ fn no_stage_of_any_integrator_allocates_in_a_step() {
     drape::run::execute(&scene.compile(), &Control::new());
     assert!(ALLOCATIONS.with(Cell::get) > before);
 }
+
+/// A cloth large enough that implicit Euler applies its system on several threads: the solve
+/// enters the thread pool once per step, and the pool's shared queue allocates one block of 63
+/// entries as it fills, so at most one allocation in these 5 steps.
+#[test]
+fn implicit_euler_on_a_cloth_large_enough_for_threads_allocates_at_most_the_pools_queue_blocks() {
+    let scene = Scene::from_json(
+        br#"{"duration": 1, "dt": 0.002, "integrator": "implicit_euler",
+             "bodies": [{"type": "cloth", "resolution": [128, 128], "pin": [[0, 0], [127, 0]]}]}"#,
+    )
+    .unwrap();
+    let compiled = scene.compile();
+    let mut simulation = Simulation::<f32>::new(&compiled.model, &compiled.config);
+    simulation.step().unwrap();
+    let before = ALLOCATIONS.with(Cell::get);
+    for _ in 0..5 {
+        simulation.step().unwrap();
+    }
+    assert!(ALLOCATIONS.with(Cell::get) - before <= 1);
+}

@@ -6,7 +6,7 @@
 //! normals), so an evaluation takes `&mut self`.
 
 use super::grid_springs::{self, GridSprings, SymplecticInputs};
-use super::model::{Model, Spring};
+use super::model::{Model, Spring, SpringGrid};
 use super::wind::{Wind, WindConfig};
 use super::{Real, State, Vec3, Vectors, springs};
 
@@ -29,6 +29,8 @@ pub struct Dynamics<T> {
     listed_springs: Vec<Spring<T>>,
     /// Wind on the surface triangles, when the scene has any.
     pub(crate) wind: Option<Wind<T>>,
+    /// The model's grid records, for solvers that exploit the grid structure.
+    pub(crate) spring_grids: Vec<SpringGrid>,
 }
 
 impl<T: Real> Dynamics<T> {
@@ -69,6 +71,7 @@ impl<T: Real> Dynamics<T> {
             grids,
             listed_springs,
             wind: None,
+            spring_grids: model.grids.clone(),
         }
     }
 

@@ -49,6 +49,8 @@ pub trait Real:
     fn max(self, other: Self) -> Self;
     /// The smaller of two values (NaN-ignoring, as `f64::min`).
     fn min(self, other: Self) -> Self;
+    /// `self * a + b` with one rounding (a fused multiply-add where the target has one).
+    fn mul_add(self, a: Self, b: Self) -> Self;
 }
 
 macro_rules! impl_real {
@@ -85,6 +87,10 @@ macro_rules! impl_real {
             #[inline(always)]
             fn min(self, other: Self) -> Self {
                 <$t>::min(self, other)
+            }
+            #[inline(always)]
+            fn mul_add(self, a: Self, b: Self) -> Self {
+                <$t>::mul_add(self, a, b)
             }
         }
     };

@@ -25,6 +25,18 @@ impl<T: Real> Sym3<T> {
         Self { xx: T::ONE, yy: T::ONE, zz: T::ONE, ..Self::ZERO }
     }
 
+    /// The matrix from its entries in the order `[xx, yy, zz, xy, xz, yz]`.
+    #[inline(always)]
+    pub fn from_entries([xx, yy, zz, xy, xz, yz]: [T; 6]) -> Self {
+        Self { xx, yy, zz, xy, xz, yz }
+    }
+
+    /// The entries in the order `[xx, yy, zz, xy, xz, yz]`.
+    #[inline(always)]
+    pub fn entries(&self) -> [T; 6] {
+        [self.xx, self.yy, self.zz, self.xy, self.xz, self.yz]
+    }
+
     /// The outer product `n nᵀ`.
     #[inline(always)]
     pub fn outer(n: Vec3<T>) -> Self {

@@ -91,7 +91,7 @@ pub(crate) enum Stepper<T> {
     SymplecticEuler(euler::Euler<T>),
     Verlet(verlet::Verlet<T>),
     Rk4(rk4::Rk4<T>),
-    ImplicitEuler(implicit::Implicit<T>),
+    ImplicitEuler(Box<implicit::Implicit<T>>),
 }
 
 impl<T: Real> Stepper<T> {
@@ -102,7 +102,9 @@ impl<T: Real> Stepper<T> {
             IntegratorKind::SymplecticEuler => Self::SymplecticEuler(euler::Euler::symplectic(dynamics)),
             IntegratorKind::Verlet => Self::Verlet(verlet::Verlet::new(n, settings.verlet_damping)),
             IntegratorKind::Rk4 => Self::Rk4(rk4::Rk4::new(n)),
-            IntegratorKind::ImplicitEuler => Self::ImplicitEuler(implicit::Implicit::new(dynamics, settings)),
+            IntegratorKind::ImplicitEuler => {
+                Self::ImplicitEuler(Box::new(implicit::Implicit::new(dynamics, settings)))
+            }
         }
     }
 

@@ -1,45 +1,20 @@
-//! Linearised backward Euler (Baraff and Witkin, 1998) with a block-Jacobi preconditioned
-//! conjugate-gradient solve.
+//! The implicit system of any spring graph, applied matrix-free from the spring list and solved
+//! by block-Jacobi preconditioned conjugate gradients.
 //!
-//! One step solves `(M - h ∂f/∂v - h² ∂f/∂x) Δv = h (f + h ∂f/∂x v)`, then sets `v += Δv` and
-//! `x += h v`. The matrix is assembled per spring as a 3×3 block `S = h D + h² K` (damping and
-//! stiffness blocks) and applied matrix-free; the drag term adds `h · drag · m` to the mass
-//! diagonal. The stiffness block drops its transverse part under compression, so the system is
-//! symmetric positive definite and CG converges at any step size. Pinned particles are filtered
-//! out of the solve (their rows and columns are held at zero), so they never move. The previous
-//! step's `Δv` is the starting guess, which makes slowly changing motion converge in a few
-//! iterations.
-//!
-//! Wind enters the right-hand side at the start of the step but not the matrix: it is weak next
-//! to the springs, and its derivative (through the moving normals) is neither symmetric nor cheap.
+//! This is the general path: chains, lattices, meshes, several bodies, or a cloth joined to
+//! other springs. Each spring's block `S = h D + h² K` is built once per step and the product
+//! `A x = M x + Σ_s ±S (x_i - x_j)` streams through the spring list; the preconditioner is the
+//! inverse of each particle's diagonal block.
 
-use super::super::dynamics::Dynamics;
-use super::super::springs::{direction, stiffness_block};
-use super::super::sym3::Sym3;
-use super::super::{Real, State, Vec3, Vectors};
-use super::IntegratorSettings;
-
-/// How the conjugate-gradient solves of a run went.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct LinearSolveStats {
-    /// The relative residual each solve aims for.
-    pub tolerance: f64,
-    /// The iteration cap per solve.
-    pub max_iterations: usize,
-    /// Iterations of the last solve.
-    pub last_iterations: usize,
-    /// The most iterations any solve took.
-    pub most_iterations: usize,
-    /// Iterations over all solves.
-    pub total_iterations: u64,
-    /// Solves that hit the cap before reaching the tolerance.
-    pub unconverged_solves: u64,
-    /// Relative residual at the end of the last solve.
-    pub last_residual: f64,
-}
+use super::super::super::dynamics::Dynamics;
+use super::super::super::springs::{direction, stiffness_block};
+use super::super::super::sym3::Sym3;
+use super::super::super::{Real, Vec3};
+use super::grid_operator::Field;
+use super::{SolveOutcome, StepInput};
 
 #[derive(Debug)]
-pub(crate) struct Implicit<T> {
+pub(crate) struct SpringListSolver<T> {
     /// Per spring: `h D + h² K`.
     blocks: Vec<Sym3<T>>,
     /// Per particle: inverse of the diagonal block of the system (the preconditioner).
@@ -48,7 +23,8 @@ pub(crate) struct Implicit<T> {
     mass_diagonal: Vec<T>,
     /// Per particle: 1 for free, 0 for pinned (the filter).
     free: Vec<T>,
-    forces: Vectors<T>,
+    positions: Vec<Vec3<T>>,
+    velocities: Vec<Vec3<T>>,
     rhs: Vec<Vec3<T>>,
     /// The solution `Δv`, kept as the next step's starting guess.
     delta_v: Vec<Vec3<T>>,
@@ -56,12 +32,10 @@ pub(crate) struct Implicit<T> {
     search: Vec<Vec3<T>>,
     preconditioned: Vec<Vec3<T>>,
     product: Vec<Vec3<T>>,
-    tolerance: T,
-    stats: LinearSolveStats,
 }
 
-impl<T: Real> Implicit<T> {
-    pub fn new(dynamics: &Dynamics<T>, settings: IntegratorSettings) -> Self {
+impl<T: Real> SpringListSolver<T> {
+    pub fn new(dynamics: &Dynamics<T>) -> Self {
         let n = dynamics.masses.len();
         let zeros = || vec![Vec3::ZERO; n];
         let free =
@@ -71,57 +45,60 @@ impl<T: Real> Implicit<T> {
             preconditioner: vec![Sym3::ZERO; n],
             mass_diagonal: vec![T::ZERO; n],
             free,
-            forces: Vectors::zeros(n),
+            positions: zeros(),
+            velocities: zeros(),
             rhs: zeros(),
             delta_v: zeros(),
             residual: zeros(),
             search: zeros(),
             preconditioned: zeros(),
             product: zeros(),
-            tolerance: T::from_f64(settings.tolerance),
-            stats: LinearSolveStats {
-                tolerance: settings.tolerance,
-                max_iterations: settings.max_iterations,
-                ..LinearSolveStats::default()
-            },
         }
     }
 
-    pub fn stats(&self) -> LinearSolveStats {
-        self.stats
-    }
-
-    pub fn step(&mut self, state: &mut State<T>, dynamics: &mut Dynamics<T>, t: f64, h: T) {
-        self.assemble(state, dynamics, t, h);
-        self.solve(dynamics);
-        for (p, &dv) in self.delta_v.iter().enumerate() {
-            let v = state.velocities.get(p) + dv;
-            state.velocities.set(p, v);
-            state.positions.set(p, state.positions.get(p) + v * h);
+    /// Solves the step's system and writes `Δv` into `delta_v`.
+    pub fn solve(
+        &mut self,
+        input: &StepInput<'_, T>,
+        dynamics: &Dynamics<T>,
+        tolerance: T,
+        max_iterations: usize,
+        delta_v: &mut Field<T>,
+    ) -> SolveOutcome<T> {
+        self.assemble(input, dynamics);
+        let outcome = self.conjugate_gradients(dynamics, tolerance, max_iterations);
+        for (p, dv) in self.delta_v.iter().enumerate() {
+            (delta_v[0][p], delta_v[1][p], delta_v[2][p]) = (dv.x, dv.y, dv.z);
         }
+        outcome
     }
 
     /// Builds the spring blocks, the preconditioner and the right-hand side
     /// `h f - h² Σ K (v_i - v_j)`, filtered.
-    fn assemble(&mut self, state: &State<T>, dynamics: &mut Dynamics<T>, t: f64, h: T) {
-        let (x, v) = (&state.positions, &state.velocities);
-        dynamics.forces(x, v, t, &mut self.forces);
+    fn assemble(&mut self, input: &StepInput<'_, T>, dynamics: &Dynamics<T>) {
+        let h = input.h;
+        let at = |field: &Field<T>, p: usize| Vec3::new(field[0][p], field[1][p], field[2][p]);
+        for p in 0..self.positions.len() {
+            self.positions[p] = at(input.positions, p);
+            self.velocities[p] = at(input.velocities, p);
+        }
+        let (x, v) = (&self.positions, &self.velocities);
         let h2 = h * h;
         let drag = dynamics.drag.unwrap_or(T::ZERO);
         for p in 0..x.len() {
             self.mass_diagonal[p] = dynamics.masses[p] * (T::ONE + h * drag);
-            self.rhs[p] = self.forces.get(p) * h;
+            self.rhs[p] = at(input.forces, p) * h;
             self.preconditioner[p] = Sym3::identity() * self.mass_diagonal[p];
         }
         for (s, block) in dynamics.springs.iter().zip(&mut self.blocks) {
             let (i, j) = (s.i as usize, s.j as usize);
-            let Some((n, l)) = direction(x.get(j) - x.get(i)) else {
+            let Some((n, l)) = direction(x[j] - x[i]) else {
                 *block = Sym3::ZERO;
                 continue;
             };
             let stiffness = stiffness_block(s, n, l);
             *block = Sym3::outer(n) * (h * s.damping) + stiffness * h2;
-            let pull = stiffness.apply(v.get(i) - v.get(j)) * h2;
+            let pull = stiffness.apply(v[i] - v[j]) * h2;
             self.rhs[i] -= pull;
             self.rhs[j] += pull;
             self.preconditioner[i] += *block;
@@ -151,12 +128,16 @@ impl<T: Real> Implicit<T> {
     }
 
     /// Preconditioned conjugate gradients from the previous solution.
-    fn solve(&mut self, dynamics: &Dynamics<T>) {
+    fn conjugate_gradients(
+        &mut self,
+        dynamics: &Dynamics<T>,
+        tolerance: T,
+        max_iterations: usize,
+    ) -> SolveOutcome<T> {
         let rhs_norm = dot(&self.rhs, &self.rhs).sqrt();
         if rhs_norm == T::ZERO {
             self.delta_v.fill(Vec3::ZERO);
-            self.record(0, T::ZERO);
-            return;
+            return SolveOutcome { iterations: 0, relative_residual: T::ZERO };
         }
         // r = b - A x0.
         self.search.copy_from_slice(&self.delta_v);
@@ -167,10 +148,10 @@ impl<T: Real> Implicit<T> {
         self.precondition();
         self.search.copy_from_slice(&self.preconditioned);
         let mut rz = dot(&self.residual, &self.preconditioned);
-        let target = self.tolerance * rhs_norm;
+        let target = tolerance * rhs_norm;
         let mut iterations = 0;
         let mut residual_norm = dot(&self.residual, &self.residual).sqrt();
-        while residual_norm > target && iterations < self.stats.max_iterations {
+        while residual_norm > target && iterations < max_iterations {
             self.apply_system(dynamics);
             let curvature = dot(&self.search, &self.product);
             if curvature <= T::ZERO || !curvature.is_finite() {
@@ -191,7 +172,7 @@ impl<T: Real> Implicit<T> {
             residual_norm = dot(&self.residual, &self.residual).sqrt();
             iterations += 1;
         }
-        self.record(iterations, residual_norm / rhs_norm);
+        SolveOutcome { iterations, relative_residual: residual_norm / rhs_norm }
     }
 
     fn precondition(&mut self) {
@@ -199,20 +180,33 @@ impl<T: Real> Implicit<T> {
             *z = m.apply(*r);
         }
     }
-
-    fn record(&mut self, iterations: usize, relative_residual: T) {
-        let stats = &mut self.stats;
-        stats.last_iterations = iterations;
-        stats.most_iterations = stats.most_iterations.max(iterations);
-        stats.total_iterations += iterations as u64;
-        stats.last_residual = relative_residual.to_f64();
-        if relative_residual > self.tolerance {
-            stats.unconverged_solves += 1;
-        }
-    }
 }
 
 /// `Σ a·b`, accumulated in `f64` so that `f32` runs keep a usable residual.
 fn dot<T: Real>(a: &[Vec3<T>], b: &[Vec3<T>]) -> T {
     T::from_f64(a.iter().zip(b).map(|(a, b)| a.to_dvec3().dot(b.to_dvec3())).sum::<f64>())
+}
+
+#[cfg(test)]
+impl<T: Real> SpringListSolver<T> {
+    /// `|b - A Δv| / |b|` of the step's system for a given `Δv`, computed afresh from the spring
+    /// list.
+    pub fn relative_residual_of(
+        &mut self,
+        input: &StepInput<'_, T>,
+        dynamics: &Dynamics<T>,
+        delta_v: &Field<T>,
+    ) -> f64 {
+        self.assemble(input, dynamics);
+        for (p, s) in self.search.iter_mut().enumerate() {
+            *s = Vec3::new(delta_v[0][p], delta_v[1][p], delta_v[2][p]);
+        }
+        self.apply_system(dynamics);
+        let (mut residual, mut rhs) = (0.0, 0.0);
+        for (b, q) in self.rhs.iter().zip(&self.product) {
+            residual += (b.to_dvec3() - q.to_dvec3()).length_squared();
+            rhs += b.to_dvec3().length_squared();
+        }
+        (residual / rhs).sqrt()
+    }
 }

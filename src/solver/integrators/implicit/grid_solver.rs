@@ -1,0 +1,200 @@
+//! The implicit system of a single grid cloth, solved by conjugate gradients preconditioned with
+//! a multigrid V-cycle.
+//!
+//! A scene that is one cloth and nothing else (every particle on the grid, every spring from its
+//! stencil, one rest length, stiffness and damping per family, one family per offset) has a system that
+//! [`GridOperator`] stores as row stencils and [`Multigrid`] inverts approximately in a few
+//! products. Block Jacobi's iteration count grows with the stiffness ratio `h² k / m` and with
+//! the resolution; one V-cycle removes the error at every wavelength, so the count stays small
+//! and nearly independent of both.
+
+use super::super::super::Real;
+use super::super::super::dynamics::Dynamics;
+use super::grid_operator::{Family, Field, zero_field};
+use super::multigrid::Multigrid;
+use super::{SolveOutcome, StepInput, dot_fields, dot_slices};
+
+#[derive(Debug)]
+pub(crate) struct GridSolver<T> {
+    multigrid: Multigrid<T>,
+    pinned: Vec<usize>,
+    rhs: Field<T>,
+    /// The solution `Δv`, kept as the next step's starting guess.
+    delta_v: Field<T>,
+    residual: Field<T>,
+    search: Field<T>,
+    preconditioned: Field<T>,
+    product: Field<T>,
+}
+
+impl<T: Real> GridSolver<T> {
+    /// The solver for `dynamics`, if it is a single grid cloth as described above.
+    pub fn new(dynamics: &Dynamics<T>) -> Option<Self> {
+        let [grid] = dynamics.spring_grids.as_slice() else { return None };
+        let [nx, ny] = grid.resolution;
+        let n = dynamics.masses.len();
+        if grid.first_particle != 0 || nx * ny != n || grid.springs != (0..dynamics.springs.len()) {
+            return None;
+        }
+        let mut families = Vec::with_capacity(grid.stencil.len());
+        let mut next = dynamics.springs.iter();
+        for &[ai, aj, bi, bj] in &grid.stencil {
+            let mut family: Option<Family<T>> = None;
+            for j in 0..ny.saturating_sub(aj.max(bj)) {
+                for i in 0..nx.saturating_sub(ai.max(bi)) {
+                    let s = next.next()?;
+                    let (a, b) = ((j + aj) * nx + i + ai, (j + bj) * nx + i + bi);
+                    if (s.i as usize, s.j as usize) != (a, b) {
+                        return None;
+                    }
+                    let offset = [bi as isize - ai as isize, bj as isize - aj as isize];
+                    // Store every family from its lower particle, so that offsets point forwards.
+                    let offset = if offset[1] > 0 || (offset[1] == 0 && offset[0] > 0) {
+                        offset
+                    } else {
+                        [-offset[0], -offset[1]]
+                    };
+                    let this = Family {
+                        offset,
+                        rest_length: s.rest_length,
+                        stiffness: s.stiffness,
+                        damping: s.damping,
+                    };
+                    match family {
+                        None => family = Some(this),
+                        Some(f) if f == this => {}
+                        Some(_) => return None,
+                    }
+                }
+            }
+            families.extend(family);
+        }
+        let repeated =
+            families.iter().enumerate().any(|(k, f)| families[..k].iter().any(|g| g.offset == f.offset));
+        if next.next().is_some() || repeated || families.iter().any(|f| f.offset == [0, 0]) {
+            return None;
+        }
+        let pinned: Vec<usize> = (0..n).filter(|&p| dynamics.inverse_masses[p] == T::ZERO).collect();
+        let multigrid = Multigrid::new(nx, ny, families, &dynamics.masses, pinned.clone())?;
+        if multigrid.system().is_parallel() {
+            // Starts the thread pool now rather than inside a step.
+            rayon::current_num_threads();
+        }
+        Some(Self {
+            multigrid,
+            pinned,
+            rhs: zero_field(n),
+            delta_v: zero_field(n),
+            residual: zero_field(n),
+            search: zero_field(n),
+            preconditioned: zero_field(n),
+            product: zero_field(n),
+        })
+    }
+
+    /// The number of multigrid levels, the fine one included.
+    #[cfg(test)]
+    pub fn depth(&self) -> usize {
+        self.multigrid.depth()
+    }
+
+    /// Solves the step's system; `Δv` is then [`delta_v`](Self::delta_v).
+    pub fn solve(
+        &mut self,
+        input: &StepInput<'_, T>,
+        tolerance: T,
+        max_iterations: usize,
+    ) -> SolveOutcome<T> {
+        if self.multigrid.system().is_parallel() {
+            // The whole solve runs on one worker of the pool, so that the parallel products in
+            // it share work through the workers' own queues: each entry into the pool from
+            // outside goes through its shared queue, which allocates a block every 63 entries.
+            rayon::scope(|_| self.solve_here(input, tolerance, max_iterations))
+        } else {
+            self.solve_here(input, tolerance, max_iterations)
+        }
+    }
+
+    fn solve_here(
+        &mut self,
+        input: &StepInput<'_, T>,
+        tolerance: T,
+        max_iterations: usize,
+    ) -> SolveOutcome<T> {
+        let h = input.h;
+        for (rhs, force) in self.rhs.iter_mut().zip(input.forces) {
+            for (r, &f) in rhs.iter_mut().zip(force) {
+                *r = f * h;
+            }
+        }
+        self.multigrid.assemble(input.positions, input.velocities, &mut self.rhs, h, input.drag);
+        zero_pinned(&mut self.rhs, &self.pinned);
+        zero_pinned(&mut self.delta_v, &self.pinned);
+        self.conjugate_gradients(tolerance, max_iterations)
+    }
+
+    /// The last solution.
+    pub fn delta_v(&self) -> &Field<T> {
+        &self.delta_v
+    }
+
+    fn conjugate_gradients(&mut self, tolerance: T, max_iterations: usize) -> SolveOutcome<T> {
+        let rhs_norm = dot_fields(&self.rhs, &self.rhs).sqrt();
+        if rhs_norm == 0.0 {
+            for axis in &mut self.delta_v {
+                axis.fill(T::ZERO);
+            }
+            return SolveOutcome { iterations: 0, relative_residual: T::ZERO };
+        }
+        // r = b - A x0 from the previous step's solution.
+        self.multigrid.system().residual(&self.rhs, &self.delta_v, &mut self.residual);
+        let target = tolerance.to_f64() * rhs_norm;
+        let mut residual_norm = dot_fields(&self.residual, &self.residual).sqrt();
+        let mut iterations = 0;
+        let mut rz = 0.0;
+        while residual_norm > target && iterations < max_iterations {
+            self.multigrid.precondition(&mut self.residual, &mut self.preconditioned);
+            let rz_next = dot_fields(&self.residual, &self.preconditioned);
+            if iterations == 0 {
+                for (s, z) in self.search.iter_mut().zip(&self.preconditioned) {
+                    s.copy_from_slice(z);
+                }
+            } else {
+                let beta = T::from_f64(rz_next / rz);
+                for (s, z) in self.search.iter_mut().zip(&self.preconditioned) {
+                    for (s, &z) in s.iter_mut().zip(z) {
+                        *s = z + *s * beta;
+                    }
+                }
+            }
+            rz = rz_next;
+            self.multigrid.system().apply(&self.search, &mut self.product);
+            let curvature = dot_fields(&self.search, &self.product);
+            if curvature <= 0.0 || !curvature.is_finite() {
+                break;
+            }
+            let alpha = T::from_f64(rz / curvature);
+            let mut squared = 0.0;
+            for a in 0..3 {
+                let (dv, r) = (&mut self.delta_v[a], &mut self.residual[a]);
+                let (s, q) = (&self.search[a], &self.product[a]);
+                for p in 0..dv.len() {
+                    dv[p] += s[p] * alpha;
+                    r[p] -= q[p] * alpha;
+                }
+                squared += dot_slices(r, r);
+            }
+            residual_norm = squared.sqrt();
+            iterations += 1;
+        }
+        SolveOutcome { iterations, relative_residual: T::from_f64(residual_norm / rhs_norm) }
+    }
+}
+
+fn zero_pinned<T: Real>(field: &mut Field<T>, pinned: &[usize]) {
+    for axis in field.iter_mut() {
+        for &p in pinned {
+            axis[p] = T::ZERO;
+        }
+    }
+}
