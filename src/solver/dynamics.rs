@@ -5,7 +5,7 @@
 //! A force that a scene does not have is `None` and costs nothing. Wind keeps scratch (vertex
 //! normals), so an evaluation takes `&mut self`.
 
-use super::grid_springs::{self, GridSprings, SymplecticInputs};
+use super::grid_springs::{self, BodyTerms, GridSprings};
 use super::model::{Model, Spring, SpringGrid};
 use super::wind::{Wind, WindConfig};
 use super::{Real, State, Vec3, Vectors, springs};
@@ -120,6 +120,17 @@ impl<T: Real> Dynamics<T> {
         }
     }
 
+    /// The one grid, and the particles' masses, gravity and drag as its passes take them.
+    fn grid_and_body_terms(&mut self) -> (&mut GridSprings<T>, BodyTerms<'_, T>) {
+        let terms = BodyTerms {
+            masses: &self.masses,
+            inverse_masses: &self.inverse_masses,
+            gravity: self.gravity.unwrap_or(Vec3::ZERO),
+            drag: self.drag.unwrap_or(T::ZERO),
+        };
+        (&mut self.grids[0], terms)
+    }
+
     /// Whether [`symplectic_step`](Self::symplectic_step) can advance this scene: one grid body
     /// that is every particle, and no other force than gravity, drag and its springs.
     pub(crate) fn has_fused_symplectic_step(&self) -> bool {
@@ -137,19 +148,19 @@ impl<T: Real> Dynamics<T> {
         if !self.has_fused_symplectic_step() {
             return None;
         }
-        let inputs = SymplecticInputs {
-            masses: &self.masses,
-            inverse_masses: &self.inverse_masses,
-            gravity: self.gravity.unwrap_or(Vec3::ZERO),
-            drag: self.drag.unwrap_or(T::ZERO),
-            h,
-        };
-        Some(self.grids[0].symplectic_step(&inputs, state, next))
+        let (grid, inputs) = self.grid_and_body_terms();
+        Some(grid.symplectic_step(&inputs, h, state, next))
     }
 
     /// Acceleration of each particle at state `(x, v)` and time `t`, written into
     /// `accelerations`; zero for pinned particles.
     pub fn accelerations(&mut self, x: &Vectors<T>, v: &Vectors<T>, t: f64, accelerations: &mut Vectors<T>) {
+        if self.has_fused_symplectic_step() {
+            // One grid and nothing else: forces and division in one pass over the rows.
+            let (grid, inputs) = self.grid_and_body_terms();
+            grid.accelerations(&inputs, x, v, accelerations);
+            return;
+        }
         self.forces(x, v, t, accelerations);
         for axis in accelerations.axes_mut() {
             for (a, &w) in axis.iter_mut().zip(&self.inverse_masses) {

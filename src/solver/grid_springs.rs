@@ -90,13 +90,13 @@ pub(crate) struct GridSprings<T> {
     bands: Vec<Band<T>>,
 }
 
-/// The forces and the state update of symplectic Euler need from outside the grid.
-pub(crate) struct SymplecticInputs<'a, T> {
+/// What the body forces and the accelerations need from outside the grid: the particles'
+/// masses, gravity and the drag rate.
+pub(crate) struct BodyTerms<'a, T> {
     pub masses: &'a [T],
     pub inverse_masses: &'a [T],
     pub gravity: Vec3<T>,
     pub drag: T,
-    pub h: T,
 }
 
 impl<T: Real> GridSprings<T> {
@@ -197,13 +197,60 @@ impl<T: Real> GridSprings<T> {
             .for_each(|(band, fx, fy, fz)| band.sweep(layout, x, v, &mut AddTo { nx, out: [fx, fy, fz] }));
     }
 
+    /// The acceleration of every particle of the body (gravity, drag and the springs, over the
+    /// mass; zero for a pinned particle) into `out`, in one pass: the same values, by the same
+    /// operations, as the forces pass followed by the division by the masses.
+    pub fn accelerations(
+        &mut self,
+        inputs: &BodyTerms<T>,
+        x: &Vectors<T>,
+        v: &Vectors<T>,
+        out: &mut Vectors<T>,
+    ) {
+        let range = self.particles();
+        let (x, v) = (x.range(range.clone()), v.range(range.clone()));
+        let masses = &inputs.masses[range.clone()];
+        let inverse_masses = &inputs.inverse_masses[range.clone()];
+        let nx = self.layout.nx;
+        let layout = &self.layout;
+        let [ax, ay, az] = out.range_mut(range);
+        let sink = |first_row: usize, out| Accelerations {
+            body: BodyForce {
+                offset: first_row * nx,
+                nx,
+                v,
+                masses,
+                gravity: inputs.gravity.to_array(),
+                drag: inputs.drag,
+            },
+            inverse_masses,
+            out,
+        };
+        if let [band] = self.bands.as_mut_slice() {
+            band.sweep(layout, x, v, &mut sink(0, [ax, ay, az]));
+            return;
+        }
+        let chunk = self.band_rows * nx;
+        (
+            self.bands.par_iter_mut(),
+            ax.par_chunks_mut(chunk),
+            ay.par_chunks_mut(chunk),
+            az.par_chunks_mut(chunk),
+        )
+            .into_par_iter()
+            .for_each(|(band, ax, ay, az)| {
+                band.sweep(layout, x, v, &mut sink(band.rows.start, [ax, ay, az]))
+            });
+    }
+
     /// One symplectic Euler step of the body from `state` into `next` (`v' = v + h f / m`, then
     /// `x' = x + h v'`), where `f` is gravity, drag and the springs. The forces never leave the
     /// row accumulators. Returns `Σ m |v'|²` and the sum of every component of `x'`, for the
     /// stability watch.
     pub fn symplectic_step(
         &mut self,
-        inputs: &SymplecticInputs<T>,
+        inputs: &BodyTerms<T>,
+        h: T,
         state: &State<T>,
         next: &mut State<T>,
     ) -> (T, T) {
@@ -224,7 +271,7 @@ impl<T: Real> GridSprings<T> {
             inverse_masses,
             gravity: inputs.gravity.to_array(),
             drag: inputs.drag,
-            h: inputs.h,
+            h,
             positions,
             velocities,
             columns,
@@ -430,8 +477,21 @@ struct SymplecticUpdate<'a, T> {
     columns: [Vec<T>; 2],
 }
 
-impl<T: Real> RowSink<T> for SymplecticUpdate<'_, T> {
-    fn start(&mut self, row: usize, force: [&mut [T]; 3]) {
+/// Gravity and drag on a band's rows: what their forces start from.
+struct BodyForce<'a, T> {
+    /// The band's first particle within the body.
+    offset: usize,
+    nx: usize,
+    v: [&'a [T]; 3],
+    masses: &'a [T],
+    gravity: [T; 3],
+    drag: T,
+}
+
+impl<T: Real> BodyForce<'_, T> {
+    /// `(g - drag v) m` for each particle of `row` (numbered within the band).
+    #[inline]
+    fn start(&self, row: usize, force: [&mut [T]; 3]) {
         let cells = self.offset + row * self.nx..self.offset + (row + 1) * self.nx;
         let masses = &self.masses[cells.clone()];
         for ((f, v), g) in force.into_iter().zip(self.v).zip(self.gravity) {
@@ -439,6 +499,46 @@ impl<T: Real> RowSink<T> for SymplecticUpdate<'_, T> {
                 *f = (g - v * self.drag) * m;
             }
         }
+    }
+}
+
+/// A sink that writes each row's acceleration, its force times the inverse mass.
+struct Accelerations<'a, T> {
+    body: BodyForce<'a, T>,
+    inverse_masses: &'a [T],
+    /// The band's accelerations.
+    out: [&'a mut [T]; 3],
+}
+
+impl<T: Real> RowSink<T> for Accelerations<'_, T> {
+    fn start(&mut self, row: usize, force: [&mut [T]; 3]) {
+        self.body.start(row, force);
+    }
+
+    fn finish(&mut self, row: usize, force: [&[T]; 3]) {
+        let nx = self.body.nx;
+        let local = row * nx..(row + 1) * nx;
+        let inverse_masses =
+            &self.inverse_masses[self.body.offset + local.start..self.body.offset + local.end];
+        for (out, f) in self.out.iter_mut().zip(force) {
+            for ((a, &f), &w) in out[local.clone()].iter_mut().zip(f).zip(inverse_masses) {
+                *a = f * w;
+            }
+        }
+    }
+}
+
+impl<T: Real> RowSink<T> for SymplecticUpdate<'_, T> {
+    fn start(&mut self, row: usize, force: [&mut [T]; 3]) {
+        let body = BodyForce {
+            offset: self.offset,
+            nx: self.nx,
+            v: self.v,
+            masses: self.masses,
+            gravity: self.gravity,
+            drag: self.drag,
+        };
+        body.start(row, force);
     }
 
     fn finish(&mut self, row: usize, force: [&[T]; 3]) {
@@ -569,18 +669,17 @@ mod tests {
         let masses: Vec<f64> = (0..n).map(|p| 0.01 + 0.001 * p as f64).collect();
         let inverse_masses: Vec<f64> =
             masses.iter().enumerate().map(|(p, m)| if p == 3 { 0.0 } else { 1.0 / m }).collect();
-        let inputs = SymplecticInputs {
+        let inputs = BodyTerms {
             masses: &masses,
             inverse_masses: &inverse_masses,
             gravity: Vec3::new(0.0, -9.81, 0.0),
             drag: 0.3,
-            h: 1e-4,
         };
         let step = |count: usize| {
             let mut grid = banded(&model, count);
             let state = State { positions: x.clone(), velocities: v.clone() };
             let mut next = State { positions: Vectors::zeros(n), velocities: Vectors::zeros(n) };
-            let sums = grid.symplectic_step(&inputs, &state, &mut next);
+            let sums = grid.symplectic_step(&inputs, 1e-4, &state, &mut next);
             (next.positions, next.velocities, sums)
         };
         let (x1, v1, sums) = step(1);
