@@ -232,52 +232,95 @@ fn run_springs<T: Real>(
     out: &mut [&mut [T]; 3],
 ) {
     let mut k = springs.start;
-    while k < springs.end {
-        let count = (springs.end - k).min(LANES);
-        let a = load_block(x, v, run.first + k, count);
-        let b = load_block(x, v, run.second + k, count);
+    while k + LANES <= springs.end {
+        let ends_a = whole_block(x, v, run.first + k);
+        let ends_b = whole_block(x, v, run.second + k);
+        let rest: &[T; LANES] = rest[k..k + LANES].try_into().expect("a whole block");
+        let block = spring_block(run, rest, ends_a, ends_b);
+        put(out, run, k, LANES, low, ends, &block);
+        k += LANES;
+    }
+    if k < springs.end {
+        let count = springs.end - k;
+        let ends_a = padded_block(x, v, run.first + k, count);
+        let ends_b = padded_block(x, v, run.second + k, count);
         let mut rest_block = [T::ZERO; LANES];
         rest_block[..count].copy_from_slice(&rest[k..k + count]);
-        let block = spring_block(run, &rest_block, &a, &b);
-        // Second ends first: see the module's notes on summation order.
-        if ends != Ends::First {
-            put(out, run.second + k - low, count, &block, |f, g| *f -= g);
-        }
-        if ends != Ends::Second {
-            put(out, run.first + k - low, count, &block, |f, g| *f += g);
-        }
-        k += count;
+        let block = spring_block(run, &rest_block, ends_a.each_ref(), ends_b.each_ref());
+        put(out, run, k, count, low, ends, &block);
     }
 }
 
-/// Combines the first `count` lanes of `block` into `out` from `start`, with `op`.
+/// Hands springs `k..k + count` of `run` to the ends `ends` names; second ends first (see the
+/// module's notes on summation order).
 #[inline(always)]
-fn put<T: Real>(out: &mut [&mut [T]; 3], start: usize, count: usize, block: &[[T; LANES]; 3], op: impl Fn(&mut T, T)) {
+fn put<T: Real>(
+    out: &mut [&mut [T]; 3],
+    run: &Run<T>,
+    k: usize,
+    count: usize,
+    low: usize,
+    ends: Ends,
+    block: &[[T; LANES]; 3],
+) {
+    if ends != Ends::First {
+        subtract_block(out, run.second + k - low, count, block);
+    }
+    if ends != Ends::Second {
+        add_block(out, run.first + k - low, count, block);
+    }
+}
+
+/// Adds the first `count` lanes of `block` to `out` from `start`.
+#[inline(always)]
+fn add_block<T: Real>(out: &mut [&mut [T]; 3], start: usize, count: usize, block: &[[T; LANES]; 3]) {
     for (axis, lanes) in out.iter_mut().zip(block) {
         if count == LANES {
             let axis: &mut [T; LANES] = (&mut axis[start..start + LANES]).try_into().expect("a whole block");
-            for (f, &g) in axis.iter_mut().zip(lanes) {
-                op(f, g);
+            for lane in 0..LANES {
+                axis[lane] += lanes[lane];
             }
         } else {
             for (f, &g) in axis[start..start + count].iter_mut().zip(lanes) {
-                op(f, g);
+                *f += g;
             }
         }
     }
 }
 
-/// The positions then velocities of `count ≤ LANES` consecutive particles from `first`, per
+/// Subtracts the first `count` lanes of `block` from `out` from `start`.
+#[inline(always)]
+fn subtract_block<T: Real>(out: &mut [&mut [T]; 3], start: usize, count: usize, block: &[[T; LANES]; 3]) {
+    for (axis, lanes) in out.iter_mut().zip(block) {
+        if count == LANES {
+            let axis: &mut [T; LANES] = (&mut axis[start..start + LANES]).try_into().expect("a whole block");
+            for lane in 0..LANES {
+                axis[lane] -= lanes[lane];
+            }
+        } else {
+            for (f, &g) in axis[start..start + count].iter_mut().zip(lanes) {
+                *f -= g;
+            }
+        }
+    }
+}
+
+/// The positions then velocities of the `LANES` consecutive particles from `first`, per
+/// component, read in place.
+#[inline(always)]
+fn whole_block<'a, T: Real>(x: [&'a [T]; 3], v: [&'a [T]; 3], first: usize) -> [&'a [T; LANES]; 6] {
+    let [x0, x1, x2] = x.map(|axis| <&[T; LANES]>::try_from(&axis[first..first + LANES]).expect("a whole block"));
+    let [v0, v1, v2] = v.map(|axis| <&[T; LANES]>::try_from(&axis[first..first + LANES]).expect("a whole block"));
+    [x0, x1, x2, v0, v1, v2]
+}
+
+/// The positions then velocities of `count < LANES` consecutive particles from `first`, per
 /// component, padded with zeros (coincident ends, whose force is zero).
 #[inline(always)]
-fn load_block<T: Real>(x: [&[T]; 3], v: [&[T]; 3], first: usize, count: usize) -> [[T; LANES]; 6] {
+fn padded_block<T: Real>(x: [&[T]; 3], v: [&[T]; 3], first: usize, count: usize) -> [[T; LANES]; 6] {
     let mut block = [[T::ZERO; LANES]; 6];
     for (lanes, axis) in block.iter_mut().zip(x.into_iter().chain(v)) {
-        if count == LANES {
-            lanes.copy_from_slice(&axis[first..first + LANES]);
-        } else {
-            lanes[..count].copy_from_slice(&axis[first..first + count]);
-        }
+        lanes[..count].copy_from_slice(&axis[first..first + count]);
     }
     block
 }
@@ -285,7 +328,7 @@ fn load_block<T: Real>(x: [&[T]; 3], v: [&[T]; 3], first: usize, count: usize) -
 /// The forces on the first ends of a block of springs, per axis: the spring-list force with the
 /// coincident-ends case selected away rather than branched around, so that the block vectorises.
 #[inline(always)]
-fn spring_block<T: Real>(run: &Run<T>, rest: &[T; LANES], a: &[[T; LANES]; 6], b: &[[T; LANES]; 6]) -> [[T; LANES]; 3] {
+fn spring_block<T: Real>(run: &Run<T>, rest: &[T; LANES], a: [&[T; LANES]; 6], b: [&[T; LANES]; 6]) -> [[T; LANES]; 3] {
     let mut block = [[T::ZERO; LANES]; 3];
     for lane in 0..LANES {
         let (dx, dy, dz) = (b[0][lane] - a[0][lane], b[1][lane] - a[1][lane], b[2][lane] - a[2][lane]);
