@@ -7,7 +7,7 @@
 
 use super::grid_springs::{self, GridSprings, SymplecticInputs};
 use super::model::{Model, Spring};
-use super::spring_runs::{RunStats, SpringRuns};
+use super::spring_runs::SpringRuns;
 use super::wind::{Wind, WindConfig};
 use super::{Real, State, Vec3, Vectors};
 
@@ -117,12 +117,6 @@ impl<T: Real> Dynamics<T> {
         if let Some(wind) = &mut self.wind {
             wind.add_forces(x, v, t, forces);
         }
-    }
-
-    /// How the springs no grid covers were sorted into runs.
-    #[allow(dead_code)]
-    pub(crate) fn spring_runs(&self) -> RunStats {
-        self.listed_springs.stats()
     }
 
     /// Whether [`symplectic_step`](Self::symplectic_step) can advance this scene: one grid body

@@ -68,6 +68,7 @@ struct Band<T> {
 }
 
 /// Numbers of springs in runs and outside them.
+#[cfg(test)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct RunStats {
     /// Runs.
@@ -95,7 +96,8 @@ impl<T: Real> SpringRuns<T> {
     pub fn new(springs: &[Spring<T>], particles: usize) -> Self {
         let (runs, rest_lengths, singles) = sort_into_runs(springs);
         let widest = runs.iter().map(|r| r.second - r.first).max().unwrap_or(1);
-        let count = if springs.is_empty() { 1 } else { parallel::band_count(particles, particles, 4 * widest) };
+        let count =
+            if springs.is_empty() { 1 } else { parallel::band_count(particles, particles, 4 * widest) };
         Self::with_bands(runs, rest_lengths, &singles, particles, count)
     }
 
@@ -129,6 +131,7 @@ impl<T: Real> SpringRuns<T> {
     }
 
     /// How the springs were sorted.
+    #[cfg(test)]
     pub fn stats(&self) -> RunStats {
         RunStats {
             runs: self.runs.len(),
@@ -309,8 +312,10 @@ fn subtract_block<T: Real>(out: &mut [&mut [T]; 3], start: usize, count: usize, 
 /// component, read in place.
 #[inline(always)]
 fn whole_block<'a, T: Real>(x: [&'a [T]; 3], v: [&'a [T]; 3], first: usize) -> [&'a [T; LANES]; 6] {
-    let [x0, x1, x2] = x.map(|axis| <&[T; LANES]>::try_from(&axis[first..first + LANES]).expect("a whole block"));
-    let [v0, v1, v2] = v.map(|axis| <&[T; LANES]>::try_from(&axis[first..first + LANES]).expect("a whole block"));
+    let [x0, x1, x2] =
+        x.map(|axis| <&[T; LANES]>::try_from(&axis[first..first + LANES]).expect("a whole block"));
+    let [v0, v1, v2] =
+        v.map(|axis| <&[T; LANES]>::try_from(&axis[first..first + LANES]).expect("a whole block"));
     [x0, x1, x2, v0, v1, v2]
 }
 
@@ -328,7 +333,12 @@ fn padded_block<T: Real>(x: [&[T]; 3], v: [&[T]; 3], first: usize, count: usize)
 /// The forces on the first ends of a block of springs, per axis: the spring-list force with the
 /// coincident-ends case selected away rather than branched around, so that the block vectorises.
 #[inline(always)]
-fn spring_block<T: Real>(run: &Run<T>, rest: &[T; LANES], a: [&[T; LANES]; 6], b: [&[T; LANES]; 6]) -> [[T; LANES]; 3] {
+fn spring_block<T: Real>(
+    run: &Run<T>,
+    rest: &[T; LANES],
+    a: [&[T; LANES]; 6],
+    b: [&[T; LANES]; 6],
+) -> [[T; LANES]; 3] {
     let mut block = [[T::ZERO; LANES]; 3];
     for lane in 0..LANES {
         let (dx, dy, dz) = (b[0][lane] - a[0][lane], b[1][lane] - a[1][lane], b[2][lane] - a[2][lane]);
@@ -351,10 +361,8 @@ fn spring_block<T: Real>(run: &Run<T>, rest: &[T; LANES], a: [&[T; LANES]; 6], b
 /// left over, in list order.
 fn sort_into_runs<T: Real>(springs: &[Spring<T>]) -> (Vec<Run<T>>, Vec<T>, Vec<Spring<T>>) {
     // Every spring with its lower particle first; the force is the same.
-    let ordered: Vec<Spring<T>> = springs
-        .iter()
-        .map(|s| if s.i <= s.j { *s } else { Spring { i: s.j, j: s.i, ..*s } })
-        .collect();
+    let ordered: Vec<Spring<T>> =
+        springs.iter().map(|s| if s.i <= s.j { *s } else { Spring { i: s.j, j: s.i, ..*s } }).collect();
     let key = |s: &Spring<T>| (s.j - s.i, s.stiffness.to_f64().to_bits(), s.damping.to_f64().to_bits(), s.i);
     let mut order: Vec<usize> = (0..ordered.len()).filter(|&k| ordered[k].i < ordered[k].j).collect();
     order.sort_by_key(|&k| (key(&ordered[k]), k));
