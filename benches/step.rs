@@ -1,5 +1,6 @@
 //! One step of the performance peers' hanging cloth at N = 32, 64, 128 and 256, for symplectic
-//! Euler, RK4 and implicit Euler in f32 and f64.
+//! Euler, RK4 and implicit Euler in f32 and f64; and the same cloth given as a triangle mesh, whose
+//! springs go through the general spring pass, for symplectic Euler.
 //!
 //! Explicit integrators use the peers' step for each size (the largest power-of-two fraction of
 //! 1e-4 s that is stable); implicit Euler uses 1/600 s. `docs/performance.md` has the figures.
@@ -13,8 +14,8 @@ use criterion::{Criterion, criterion_group, criterion_main};
 use glam::DVec3;
 
 use drape::solver::{
-    Cloth, Config, IntegratorKind, IntegratorSettings, Model, Orientation, Real, Simulation, SpringParams,
-    parallel,
+    Cloth, Config, IntegratorKind, IntegratorSettings, Mesh, Model, Orientation, Real, Simulation,
+    SpringParams, parallel,
 };
 
 /// The hanging cloth of the performance peers: 1 m², 1 kg, every spring at k = 5000 N/m and
@@ -37,6 +38,25 @@ fn cloth(n: usize) -> Model {
     model
 }
 
+/// The peers' cloth as a `mesh` body: the cloth's vertices in row-major order and its triangles,
+/// k = 5000 N/m and damping 0.5 N·s/m on edges and across shared edges, 1 kg, the same two
+/// corners pinned. Its springs are not a grid, so they take the general spring pass.
+fn mesh(n: usize) -> Model {
+    let grid = cloth(n);
+    let springs = SpringParams { stiffness: 5000.0, damping: 0.5 };
+    let mut model = Model::default();
+    model.add_mesh(&Mesh {
+        vertices: grid.positions,
+        triangles: grid.triangles.iter().map(|t| t.map(|v| v as usize)).collect(),
+        mass: 1.0,
+        velocity: DVec3::ZERO,
+        structural: springs,
+        bending: springs,
+        pins: vec![0, n - 1],
+    });
+    model
+}
+
 /// The peers' explicit step for an `n × n` cloth.
 fn explicit_dt(n: usize) -> f64 {
     match n {
@@ -47,7 +67,14 @@ fn explicit_dt(n: usize) -> f64 {
     }
 }
 
-fn bench_step<T: Real>(c: &mut Criterion, n: usize, integrator: IntegratorKind) {
+/// Benchmarks one step of `body(n)` (named `name` in the bench id) with `integrator`.
+fn bench_body<T: Real>(
+    c: &mut Criterion,
+    name: &str,
+    body: fn(usize) -> Model,
+    n: usize,
+    integrator: IntegratorKind,
+) {
     let dt = match integrator {
         IntegratorKind::ImplicitEuler => 1.0 / 600.0,
         _ => explicit_dt(n),
@@ -60,15 +87,15 @@ fn bench_step<T: Real>(c: &mut Criterion, n: usize, integrator: IntegratorKind) 
         drag: 0.01 * (n * n) as f64,
         ..Config::default()
     };
-    let mut sim = Simulation::<T>::new(&cloth(n), &config);
+    let mut sim = Simulation::<T>::new(&body(n), &config);
     // Steps run inside the solver's pool, as a run does, so that a large cloth's bands are shared
     // out to the pool's threads.
-    c.bench_function(&format!("step/cloth{n}/{}/{}", integrator.name(), T::NAME), |b| {
+    c.bench_function(&format!("step/{name}{n}/{}/{}", integrator.name(), T::NAME), |b| {
         b.iter_custom(|iterations| {
             parallel::install(|| {
                 let start = Instant::now();
                 for _ in 0..iterations {
-                    sim.step().expect("the benchmark cloth stays stable");
+                    sim.step().expect("the benchmark body stays stable");
                 }
                 start.elapsed()
             })
@@ -81,9 +108,11 @@ fn steps(c: &mut Criterion) {
         for integrator in
             [IntegratorKind::SymplecticEuler, IntegratorKind::Rk4, IntegratorKind::ImplicitEuler]
         {
-            bench_step::<f32>(c, n, integrator);
-            bench_step::<f64>(c, n, integrator);
+            bench_body::<f32>(c, "cloth", cloth, n, integrator);
+            bench_body::<f64>(c, "cloth", cloth, n, integrator);
         }
+        bench_body::<f32>(c, "mesh", mesh, n, IntegratorKind::SymplecticEuler);
+        bench_body::<f64>(c, "mesh", mesh, n, IntegratorKind::SymplecticEuler);
     }
 }
 

@@ -15,10 +15,11 @@ use serve::{Server, ended, job, result, submit, under_way, wait_for};
 const SMALL: &str = r#"{"duration": 1, "dt": 0.001, "bodies": [{"type": "chain", "count": 500}],
                        "output": {"frames": "final"}}"#;
 /// A few seconds of work.
-const MEDIUM: &str = r#"{"duration": 15, "dt": 0.001, "bodies": [{"type": "chain", "count": 4000}],
+const MEDIUM: &str = r#"{"duration": 15, "dt": 0.001, "gravity": [0, 0, 0], "bodies": [{"type": "chain", "count": 20000}],
                         "output": {"frames": "final"}}"#;
 /// Far longer than the test: it ends only by cancellation.
-const LONG: &str = r#"{"duration": 1000, "dt": 0.001, "bodies": [{"type": "chain", "count": 1000}],
+const LONG: &str = r#"{"duration": 1000, "dt": 0.001, "gravity": [0, 0, 0],
+                      "bodies": [{"type": "chain", "count": 10000}],
                       "output": {"frames": "none"}}"#;
 
 fn counts(starts: impl IntoIterator<Item = String>) -> HashMap<String, usize> {

@@ -12,7 +12,7 @@ use serve::{Server, ended, job, result, submit, under_way, wait_for};
 const TINY: &str = r#"{"duration": 0.1, "dt": 0.01, "bodies": [{"type": "chain", "count": 3}],
                       "output": {"frames": "final"}}"#;
 /// Long enough to be killed in the middle (a few seconds), short enough to run again.
-const MEDIUM: &str = r#"{"duration": 15, "dt": 0.001, "bodies": [{"type": "chain", "count": 4000}],
+const MEDIUM: &str = r#"{"duration": 15, "dt": 0.001, "gravity": [0, 0, 0], "bodies": [{"type": "chain", "count": 20000}],
                         "output": {"frames": "final"}}"#;
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

@@ -9,9 +9,10 @@ use std::time::Duration;
 
 use serde_json::Value;
 
-const LONG: &str = r#"{"duration": 1000, "dt": 0.001, "bodies": [{"type": "chain", "count": 1000}],
+const LONG: &str = r#"{"duration": 1000, "dt": 0.001, "gravity": [0, 0, 0],
+                      "bodies": [{"type": "chain", "count": 10000}],
                       "output": {"frames": "none"}}"#;
-const SHORT: &str = r#"{"duration": 20, "dt": 0.001, "bodies": [{"type": "chain", "count": 1000}],
+const SHORT: &str = r#"{"duration": 20, "dt": 0.001, "gravity": [0, 0, 0], "bodies": [{"type": "chain", "count": 1000}],
                        "output": {"frames": "final"}}"#;
 
 /// Starts `drape serve` on a free port and returns it with its base URL.

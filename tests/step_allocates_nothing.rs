@@ -1,5 +1,6 @@
 //! Guards the rule that a simulation step allocates nothing: every integrator, both precisions,
-//! on a cloth with every stage a scene can switch on, stepped under an allocator that counts.
+//! on a cloth with every stage a scene can switch on, and on bodies whose springs are not a grid,
+//! stepped under an allocator that counts.
 
 // Counting allocations needs a global allocator, which is an unsafe impl; it forwards to the
 // system allocator unchanged.
@@ -50,11 +51,22 @@ const ALL_STAGES: [&str; 3] = [
     r#""drag": 0.5"#,
 ];
 
+/// A cloth, whose springs the stencil pass evaluates.
+const CLOTH: &str = r#"[{"type": "cloth", "resolution": [12, 12], "pin": [[0, 0], [11, 0]]}]"#;
+
+/// Bodies whose springs go through the spring-run pass.
+const NOT_GRIDS: &str = r#"[{"type": "lattice", "resolution": [5, 4, 3]}, {"type": "chain"},
+    {"type": "mesh", "vertices": [0, 1, 0, 0.1, 1, 0, 0.2, 1, 0, 0, 0.9, 0, 0.1, 0.9, 0, 0.2, 0.9, 0.05],
+     "triangles": [0, 3, 1, 1, 3, 4, 1, 4, 2, 2, 4, 5]}]"#;
+
 fn allocations_during_steps<T: Real>(integrator: IntegratorKind, stages: &str) -> usize {
+    allocations_stepping::<T>(integrator, stages, CLOTH)
+}
+
+fn allocations_stepping<T: Real>(integrator: IntegratorKind, stages: &str, bodies: &str) -> usize {
     let scene = Scene::from_json(
         format!(
-            r#"{{"duration": 1, "dt": 0.0002, "integrator": "{}", {stages},
-                "bodies": [{{"type": "cloth", "resolution": [12, 12], "pin": [[0, 0], [11, 0]]}}]}}"#,
+            r#"{{"duration": 1, "dt": 0.0002, "integrator": "{}", {stages}, "bodies": {bodies}}}"#,
             integrator.name()
         )
         .as_bytes(),
@@ -82,6 +94,21 @@ fn no_stage_of_any_integrator_allocates_in_a_step() {
             let name = integrator.name();
             assert_eq!(allocations_during_steps::<f64>(integrator, stages), 0, "{name} in f64 with {stages}");
             assert_eq!(allocations_during_steps::<f32>(integrator, stages), 0, "{name} in f32 with {stages}");
+        }
+    }
+    for integrator in IntegratorKind::ALL {
+        let name = integrator.name();
+        for stages in &ALL_STAGES[1..] {
+            assert_eq!(
+                allocations_stepping::<f64>(integrator, stages, NOT_GRIDS),
+                0,
+                "{name} in f64 with {stages}"
+            );
+            assert_eq!(
+                allocations_stepping::<f32>(integrator, stages, NOT_GRIDS),
+                0,
+                "{name} in f32 with {stages}"
+            );
         }
     }
     // The counter does count: a run records frames into growing buffers.

@@ -189,7 +189,7 @@ async fn deleting_a_sweep_cancels_every_job() {
     let (_, app) = test_app(config(1, 8), ApiConfig::default());
     // Long runs: one runs, the rest wait, until cancelled.
     let long = json!({
-        "scene": {"duration": 500, "bodies": [{"type": "chain", "count": 1000}], "output": {"frames": "none"}},
+        "scene": {"duration": 500, "gravity": [0, 0, 0], "bodies": [{"type": "chain", "count": 10000}], "output": {"frames": "none"}},
         "vary": {"/dt": [0.001, 0.002, 0.004]},
     });
     let answer = post_json(&app, "/sweeps", &long.to_string()).await;

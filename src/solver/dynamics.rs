@@ -7,8 +7,9 @@
 
 use super::grid_springs::{self, BodyTerms, GridSprings};
 use super::model::{Model, Spring, SpringGrid};
+use super::spring_runs::SpringRuns;
 use super::wind::{Wind, WindConfig};
-use super::{Real, State, Vec3, Vectors, springs};
+use super::{Real, State, Vec3, Vectors};
 
 /// Particle masses and the forces acting on them.
 #[derive(Clone, Debug)]
@@ -25,8 +26,8 @@ pub struct Dynamics<T> {
     pub springs: Vec<Spring<T>>,
     /// The grid bodies whose springs a stencil pass evaluates.
     grids: Vec<GridSprings<T>>,
-    /// The springs no grid covers, evaluated from the list.
-    listed_springs: Vec<Spring<T>>,
+    /// The springs no grid covers, sorted into runs.
+    listed_springs: SpringRuns<T>,
     /// Wind on the surface triangles, when the scene has any.
     pub(crate) wind: Option<Wind<T>>,
     /// The model's grid records, for solvers that exploit the grid structure.
@@ -56,12 +57,13 @@ impl<T: Real> Dynamics<T> {
             })
             .collect::<Vec<_>>();
         let grids = grid_springs::grids(model, &springs);
-        let listed_springs = springs
+        let listed: Vec<Spring<T>> = springs
             .iter()
             .enumerate()
             .filter(|(k, _)| !grids.iter().any(|g| g.springs().contains(k)))
             .map(|(_, s)| *s)
             .collect();
+        let listed_springs = SpringRuns::new(&listed, model.particle_count());
         Self {
             masses,
             inverse_masses,
@@ -114,7 +116,7 @@ impl<T: Real> Dynamics<T> {
         for grid in &mut self.grids {
             grid.add_forces(x, v, forces);
         }
-        springs::add_forces(&self.listed_springs, x, v, forces);
+        self.listed_springs.add_forces(x, v, forces);
         if let Some(wind) = &mut self.wind {
             wind.add_forces(x, v, t, forces);
         }

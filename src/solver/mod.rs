@@ -18,6 +18,7 @@ pub mod parallel;
 mod real;
 mod self_collision;
 mod simulation;
+mod spring_runs;
 mod springs;
 mod stability;
 mod state;

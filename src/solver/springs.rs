@@ -21,7 +21,10 @@ pub(crate) fn direction<T: Real>(d: Vec3<T>) -> Option<(Vec3<T>, T)> {
     }
 }
 
-/// Adds every spring's force to `forces`.
+/// Adds every spring's force to `forces`, one spring at a time in list order: the definition
+/// that the solver's fast passes ([`grid_springs`](super::grid_springs),
+/// [`spring_runs`](super::spring_runs)) are checked against.
+#[cfg(test)]
 pub fn add_forces<T: Real>(springs: &[Spring<T>], x: &Vectors<T>, v: &Vectors<T>, forces: &mut Vectors<T>) {
     for s in springs {
         let (i, j) = (s.i as usize, s.j as usize);

@@ -19,7 +19,8 @@ pub const TINY: &str = r#"{"duration": 0.1, "dt": 0.01, "bodies": [{"type": "cha
                           "output": {"frames": "final"}}"#;
 
 /// A scene that runs for a long time (many seconds) unless cancelled.
-pub const LONG: &str = r#"{"duration": 1000, "dt": 0.001, "bodies": [{"type": "chain", "count": 1000}],
+pub const LONG: &str = r#"{"duration": 1000, "dt": 0.001, "gravity": [0, 0, 0],
+                          "bodies": [{"type": "chain", "count": 10000}],
                           "output": {"frames": "none"}}"#;
 
 /// Job settings for tests: one worker, a short queue.
