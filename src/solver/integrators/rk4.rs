@@ -36,13 +36,15 @@ impl<T: Real> Rk4<T> {
         for axis in 0..3 {
             let (x0, v0, a) =
                 (state.positions.axis(axis), state.velocities.axis(axis), accelerations.axis(axis));
-            let (sum_x, sum_v) = (sum_x.axis_mut(axis), sum_v.axis_mut(axis));
-            let (trial_x, trial_v) = (trial.positions.axis_mut(axis), trial.velocities.axis_mut(axis));
-            for p in 0..x0.len() {
-                sum_x[p] = v0[p];
-                sum_v[p] = a[p];
-                trial_x[p] = x0[p] + v0[p] * half;
-                trial_v[p] = v0[p] + a[p] * half;
+            let sums = sum_x.axis_mut(axis).iter_mut().zip(sum_v.axis_mut(axis));
+            let trials = trial.positions.axis_mut(axis).iter_mut().zip(trial.velocities.axis_mut(axis));
+            for (((sum_x, sum_v), (trial_x, trial_v)), ((&x0, &v0), &a)) in
+                sums.zip(trials).zip(x0.iter().zip(v0).zip(a))
+            {
+                *sum_x = v0;
+                *sum_v = a;
+                *trial_x = x0 + v0 * half;
+                *trial_v = v0 + a * half;
             }
         }
         // Stages 2 and 3 at the midpoint; the trial state moves on to the next stage's.
@@ -52,14 +54,16 @@ impl<T: Real> Rk4<T> {
             for axis in 0..3 {
                 let (x0, v0, a) =
                     (state.positions.axis(axis), state.velocities.axis(axis), accelerations.axis(axis));
-                let (sum_x, sum_v) = (sum_x.axis_mut(axis), sum_v.axis_mut(axis));
-                let (trial_x, trial_v) = (trial.positions.axis_mut(axis), trial.velocities.axis_mut(axis));
-                for p in 0..x0.len() {
-                    let v = trial_v[p];
-                    sum_x[p] += v * two;
-                    sum_v[p] += a[p] * two;
-                    trial_x[p] = x0[p] + v * advance;
-                    trial_v[p] = v0[p] + a[p] * advance;
+                let sums = sum_x.axis_mut(axis).iter_mut().zip(sum_v.axis_mut(axis));
+                let trials = trial.positions.axis_mut(axis).iter_mut().zip(trial.velocities.axis_mut(axis));
+                for (((sum_x, sum_v), (trial_x, trial_v)), ((&x0, &v0), &a)) in
+                    sums.zip(trials).zip(x0.iter().zip(v0).zip(a))
+                {
+                    let v = *trial_v;
+                    *sum_x += v * two;
+                    *sum_v += a * two;
+                    *trial_x = x0 + v * advance;
+                    *trial_v = v0 + a * advance;
                 }
             }
         }
