@@ -28,7 +28,7 @@ use std::ops::Range;
 use rayon::prelude::*;
 
 use super::model::{Model, Spring, SpringGrid};
-use super::{Real, State, Vec3, Vectors, parallel};
+use super::{Real, State, Vec3, Vectors, parallel, springs};
 
 /// One spring family of a grid: its stencil offsets and its parameters.
 #[derive(Clone, Copy, Debug)]
@@ -409,28 +409,11 @@ fn spring_row<T: Real>(
     let [ub, vb, wb] = v.map(|axis| &axis[q..q + count]);
     let [fx, fy, fz] = forces.map(|axis| &mut axis[..count]);
     for i in 0..count {
-        let a = [xa[i], ya[i], za[i], ua[i], va[i], wa[i]];
-        let b = [xb[i], yb[i], zb[i], ub[i], vb[i], wb[i]];
-        let force = spring_force(family, |k| a[k], |k| b[k]);
+        let d = [xb[i] - xa[i], yb[i] - ya[i], zb[i] - za[i], ub[i] - ua[i], vb[i] - va[i], wb[i] - wa[i]];
+        let force = springs::branch_free_force(family.stiffness, family.rest_length, family.damping, d);
         let force = if i < len { force } else { [T::ZERO; 3] };
         (fx[i], fy[i], fz[i]) = (force[0], force[1], force[2]);
     }
-}
-
-/// The force on the first end of one spring, given each end's `[x, y, z, vx, vy, vz]` by
-/// component: the spring-list force (see [`springs`](super::springs)), with the coincident-ends
-/// case selected away rather than branched around, so that a block of springs vectorises.
-#[inline(always)]
-fn spring_force<T: Real>(family: &Family<T>, a: impl Fn(usize) -> T, b: impl Fn(usize) -> T) -> [T; 3] {
-    let (dx, dy, dz) = (b(0) - a(0), b(1) - a(1), b(2) - a(2));
-    let l2 = dx * dx + dy * dy + dz * dz;
-    let l = l2.sqrt();
-    let inverse = T::ONE / l;
-    let (nx, ny, nz) = (dx * inverse, dy * inverse, dz * inverse);
-    let (du, dv, dw) = (b(3) - a(3), b(4) - a(4), b(5) - a(5));
-    let magnitude =
-        family.stiffness * (l - family.rest_length) + family.damping * (du * nx + dv * ny + dw * nz);
-    if l2 > T::from_f64(1e-30) { [nx * magnitude, ny * magnitude, nz * magnitude] } else { [T::ZERO; 3] }
 }
 
 /// A sink that adds each row's spring forces to a band of a forces array: the row starts from

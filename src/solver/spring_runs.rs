@@ -30,7 +30,7 @@ use std::ops::Range;
 use rayon::prelude::*;
 
 use super::model::Spring;
-use super::springs::direction;
+use super::springs::{self, direction};
 use super::{Real, Vec3, Vectors, parallel};
 
 /// Springs evaluated side by side: eight `f32` fill an AVX2 register.
@@ -330,8 +330,8 @@ fn padded_block<T: Real>(x: [&[T]; 3], v: [&[T]; 3], first: usize, count: usize)
     block
 }
 
-/// The forces on the first ends of a block of springs, per axis: the spring-list force with the
-/// coincident-ends case selected away rather than branched around, so that the block vectorises.
+/// The forces on the first ends of a block of springs, per axis (see
+/// [`springs::branch_free_force`]).
 #[inline(always)]
 fn spring_block<T: Real>(
     run: &Run<T>,
@@ -341,17 +341,9 @@ fn spring_block<T: Real>(
 ) -> [[T; LANES]; 3] {
     let mut block = [[T::ZERO; LANES]; 3];
     for lane in 0..LANES {
-        let (dx, dy, dz) = (b[0][lane] - a[0][lane], b[1][lane] - a[1][lane], b[2][lane] - a[2][lane]);
-        let l2 = dx * dx + dy * dy + dz * dz;
-        let l = l2.sqrt();
-        let inverse = T::ONE / l;
-        let (nx, ny, nz) = (dx * inverse, dy * inverse, dz * inverse);
-        let (du, dv, dw) = (b[3][lane] - a[3][lane], b[4][lane] - a[4][lane], b[5][lane] - a[5][lane]);
-        let magnitude = run.stiffness * (l - rest[lane]) + run.damping * (du * nx + dv * ny + dw * nz);
-        let loaded = l2 > T::from_f64(1e-30);
-        block[0][lane] = if loaded { nx * magnitude } else { T::ZERO };
-        block[1][lane] = if loaded { ny * magnitude } else { T::ZERO };
-        block[2][lane] = if loaded { nz * magnitude } else { T::ZERO };
+        let d = std::array::from_fn(|k| b[k][lane] - a[k][lane]);
+        let [fx, fy, fz] = springs::branch_free_force(run.stiffness, rest[lane], run.damping, d);
+        (block[0][lane], block[1][lane], block[2][lane]) = (fx, fy, fz);
     }
     block
 }

@@ -36,6 +36,21 @@ pub fn add_forces<T: Real>(springs: &[Spring<T>], x: &Vectors<T>, v: &Vectors<T>
     }
 }
 
+/// The force on the first end of a spring of stiffness `k`, rest length `rest` and damping `c`,
+/// given the second end's position and velocity relative to the first
+/// (`[dx, dy, dz, du, dv, dw]`): the force [`add_forces`] applies, with the coincident-ends case
+/// selected away rather than branched around, so that a block of springs evaluated lane by lane
+/// compiles to vector instructions.
+#[inline(always)]
+pub(crate) fn branch_free_force<T: Real>(k: T, rest: T, c: T, [dx, dy, dz, du, dv, dw]: [T; 6]) -> [T; 3] {
+    let l2 = dx * dx + dy * dy + dz * dz;
+    let l = l2.sqrt();
+    let inverse = T::ONE / l;
+    let (nx, ny, nz) = (dx * inverse, dy * inverse, dz * inverse);
+    let magnitude = k * (l - rest) + c * (du * nx + dv * ny + dw * nz);
+    if l2 > T::from_f64(1e-30) { [nx * magnitude, ny * magnitude, nz * magnitude] } else { [T::ZERO; 3] }
+}
+
 /// The stiffness block `K_s` of one spring: `∂f_i/∂x_i = -K_s`, `∂f_i/∂x_j = K_s`.
 ///
 /// `K_s = k [n nᵀ + α (I - n nᵀ)]` with `α = max(0, 1 - L/l)`: the transverse term is dropped
