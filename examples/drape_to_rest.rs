@@ -105,7 +105,7 @@ fn run_until(name: &str, integrator: IntegratorKind, dt: f64, drag: f64, rest_sp
         if let Err(divergence) = sim.step() {
             panic!("{name} at dt = {dt:e} s diverged: {divergence:?}");
         }
-        if sim.steps_taken() % check_every == 0 && max_speed(sim.state()) < rest_speed {
+        if sim.steps_taken().is_multiple_of(check_every) && max_speed(sim.state()) < rest_speed {
             at_rest = true;
             break;
         }

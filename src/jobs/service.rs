@@ -355,10 +355,10 @@ impl Jobs {
     pub async fn submit(&self, submission: Submission) -> Result<Submitted, SubmitError> {
         let Submission { scene, document, fingerprint, idempotency_key, max_work } = submission;
         let idempotency = idempotency_key.map(|key| Idempotency { key, fingerprint });
-        if let Some(key) = &idempotency {
-            if let Some(earlier) = self.shared.store.find_by_key(&key.key).await? {
-                return repeat_of(earlier, key);
-            }
+        if let Some(key) = &idempotency
+            && let Some(earlier) = self.shared.store.find_by_key(&key.key).await?
+        {
+            return repeat_of(earlier, key);
         }
 
         // A full queue refuses before any work.
@@ -378,10 +378,10 @@ impl Jobs {
             .await
             .map_err(|e| StoreError::Backend(format!("admission task failed: {e}")))?
             .map_err(SubmitError::OverLimit)?;
-        if let Some(budget) = max_work {
-            if plan.work() > budget {
-                return Err(SubmitError::OverBudget { work: plan.work(), budget });
-            }
+        if let Some(budget) = max_work
+            && plan.work() > budget
+        {
+            return Err(SubmitError::OverBudget { work: plan.work(), budget });
         }
 
         let id = JobId::new();
@@ -405,11 +405,11 @@ impl Jobs {
     pub async fn get(&self, id: &JobId) -> Result<Option<JobRecord>, StoreError> {
         let live = self.shared.live().get(id).cloned();
         let mut record = self.shared.store.get(id).await?;
-        if let (Some(record), Some(live)) = (&mut record, live) {
-            if !record.status.is_final() {
-                record.status = *live.status.borrow();
-                record.steps_done = live.control.steps_done();
-            }
+        if let (Some(record), Some(live)) = (&mut record, live)
+            && !record.status.is_final()
+        {
+            record.status = *live.status.borrow();
+            record.steps_done = live.control.steps_done();
         }
         Ok(record)
     }

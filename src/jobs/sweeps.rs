@@ -244,10 +244,10 @@ async fn stored_run(jobs: &Jobs, id: &JobId) -> Result<StoredRun, StoreError> {
             detail: Some(format!("job {id} is no longer kept by this server")),
         }));
     };
-    if job.status.is_final() {
-        if let Some(result) = jobs.result(id).await? {
-            return Ok(StoredRun::Result(id.clone(), result.bytes));
-        }
+    if job.status.is_final()
+        && let Some(result) = jobs.result(id).await?
+    {
+        return Ok(StoredRun::Result(id.clone(), result.bytes));
     }
     Ok(StoredRun::Pending(Outcome::Pending { status: job.status.name().into(), detail: job.message }))
 }

@@ -77,14 +77,15 @@ where
             status = Status::Cancelled;
             break;
         }
-        if let Some(speed) = compiled.stop_at_rest {
-            if taken > 0 && at_rest(&simulation.state().velocities, speed) {
-                rest_time = Some(schedule.time_of(taken));
-                if schedule.steps.get(next_frame.wrapping_sub(1)) != Some(&taken) {
-                    recorder.record(&simulation, schedule.time_of(taken));
-                }
-                break;
+        if let Some(speed) = compiled.stop_at_rest
+            && taken > 0
+            && at_rest(&simulation.state().velocities, speed)
+        {
+            rest_time = Some(schedule.time_of(taken));
+            if schedule.steps.get(next_frame.wrapping_sub(1)) != Some(&taken) {
+                recorder.record(&simulation, schedule.time_of(taken));
             }
+            break;
         }
         let target = schedule.steps.get(next_frame).copied().unwrap_or(compiled.steps).min(taken + BATCH);
         if let Err(d) = (taken..target).try_for_each(|_| simulation.step()) {

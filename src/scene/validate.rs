@@ -220,14 +220,14 @@ fn body_problems(p: &mut Problems, at: &str, body: &Body) {
 fn mesh_problems(p: &mut Problems, at: &str, m: &super::types::MeshSpec) {
     let field = |name: &str| format!("{at}/{name}");
     let vertex_count = m.vertices.len() / 3;
-    if m.vertices.len() % 3 != 0 || vertex_count < 3 {
+    if !m.vertices.len().is_multiple_of(3) || vertex_count < 3 {
         p.add(
             field("vertices"),
             format!("must hold x, y, z for at least 3 vertices; got {} numbers", m.vertices.len()),
         );
     }
     p.finite(&field("vertices"), &m.vertices);
-    if m.triangles.len() % 3 != 0 || m.triangles.is_empty() {
+    if !m.triangles.len().is_multiple_of(3) || m.triangles.is_empty() {
         p.add(
             field("triangles"),
             format!("must hold three indices per triangle, at least one; got {}", m.triangles.len()),

@@ -328,10 +328,10 @@ impl Model {
             self.connect(at(*p), at(*q), mesh.structural, SpringKind::Structural);
         }
         for (_, far) in &edges {
-            if let [f, g] = far[..] {
-                if f != g {
-                    self.connect(at(f), at(g), mesh.bending, SpringKind::Bending);
-                }
+            if let [f, g] = far[..]
+                && f != g
+            {
+                self.connect(at(f), at(g), mesh.bending, SpringKind::Bending);
             }
         }
         for &v in &mesh.pins {

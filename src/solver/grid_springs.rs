@@ -4,9 +4,9 @@
 //! `(i + bi, j + bj)` with non-negative offsets, each with one rest length, stiffness and damping.
 //! Along a grid row the first ends of a family are consecutive particles and so are the second
 //! ends, so a family's springs on one row are two contiguous runs of each axis of the state: no
-//! index lists. Each family's forces along a row are computed once into a row buffer (a
-//! branch-free loop the compiler vectorises), then added to the first ends and subtracted from
-//! the second.
+//! index lists. A family's springs along a row are evaluated a vector block at a time
+//! ([`spring_blocks`](super::spring_blocks)) and each block's forces go straight into the force
+//! accumulators of both ends' rows.
 //!
 //! Rows are visited in order. A spring of row `j` reaches rows `j` to `j + reach` only, so once
 //! row `j`'s springs are done, row `j` has its whole force: it is handed on (to the forces array,
@@ -28,7 +28,8 @@ use std::ops::Range;
 use rayon::prelude::*;
 
 use super::model::{Model, Spring, SpringGrid};
-use super::{Real, State, Vec3, Vectors, parallel, springs};
+use super::spring_blocks::{self as blocks, LANES};
+use super::{Real, State, Vec3, Vectors, parallel};
 
 /// One spring family of a grid: its stencil offsets and its parameters.
 #[derive(Clone, Copy, Debug)]
@@ -63,10 +64,11 @@ impl<T> Layout<T> {
 struct Band<T> {
     rows: Range<usize>,
     /// Force accumulators of the `reach + 1` rows in flight, per axis: row `r` in slot
-    /// `r % (reach + 1)`.
+    /// `r % (reach + 1)`, and a last slot that takes, and drops, the forces on rows outside the
+    /// band.
     ring: [Vec<T>; 3],
-    /// One family's spring forces along a row, per axis.
-    row_forces: [Vec<T>; 3],
+    /// One family's spring forces along a row, per axis, on their way to the second ends.
+    staged: [Vec<T>; 3],
     /// Per column: `Σ m |v|²` and `Σ (x + y + z)` over the band's rows, for the stability watch.
     columns: [Vec<T>; 2],
 }
@@ -157,8 +159,8 @@ impl<T: Real> GridSprings<T> {
         let bands = (0..ny.div_ceil(band_rows))
             .map(|b| Band {
                 rows: b * band_rows..((b + 1) * band_rows).min(layout.ny),
-                ring: std::array::from_fn(|_| vec![T::ZERO; (layout.reach + 1) * layout.stride()]),
-                row_forces: std::array::from_fn(|_| vec![T::ZERO; layout.stride()]),
+                ring: std::array::from_fn(|_| vec![T::ZERO; (layout.reach + 2) * layout.stride()]),
+                staged: std::array::from_fn(|_| vec![T::ZERO; layout.stride()]),
                 columns: std::array::from_fn(|_| vec![T::ZERO; layout.nx]),
             })
             .collect();
@@ -327,7 +329,11 @@ impl<T: Real> Band<T> {
         let stride = layout.stride();
         let (first, end) = (self.rows.start, self.rows.end);
         let owned = |row: usize| (first..end).contains(&row);
+        let dropped = reach + 1;
         let first_springs = first.saturating_sub(reach);
+        for axis in &mut self.ring {
+            axis[dropped * stride..].fill(T::ZERO);
+        }
         for row in first..(first_springs + reach).min(end) {
             sink.start(row - first, ring_row(&mut self.ring, row, reach, stride).map(|axis| &mut axis[..nx]));
         }
@@ -345,19 +351,17 @@ impl<T: Real> Band<T> {
                 if row_a.max(row_b) >= ny || !(owned(row_a) || owned(row_b)) {
                     continue;
                 }
-                let len = nx - ai.max(bi);
-                let ends = [row_a * nx + ai, row_b * nx + bi];
-                spring_row(family, x, v, ends, len, self.row_forces.each_mut().map(Vec::as_mut_slice));
-                for (row, start, sign) in [(row_a, ai, T::ONE), (row_b, bi, -T::ONE)] {
-                    if owned(row) {
-                        let ring = ring_row(&mut self.ring, row, reach, stride);
-                        for (acc, f) in ring.into_iter().zip(&self.row_forces) {
-                            for (a, &f) in acc[start..start + len].iter_mut().zip(&f[..len]) {
-                                *a += sign * f;
-                            }
-                        }
-                    }
-                }
+                let slot = |row: usize| if owned(row) { row % (reach + 1) } else { dropped };
+                spring_row(
+                    family,
+                    x,
+                    v,
+                    [row_a * nx + ai, row_b * nx + bi],
+                    nx - ai.max(bi),
+                    &mut self.ring,
+                    &mut self.staged,
+                    [slot(row_a) * stride + ai, slot(row_b) * stride + bi],
+                );
             }
             if j >= first {
                 let slot = j % (reach + 1);
@@ -381,38 +385,100 @@ fn ring_row<T>(ring: &mut [Vec<T>; 3], row: usize, reach: usize, stride: usize) 
 /// only add recomputed rows.
 const MAX_BANDS: usize = 64;
 
-/// The vector width the row loops are padded to: eight `f32` fill an AVX2 register.
-const LANES: usize = 8;
-
-/// Evaluates the `len` springs of one family along a row, from particles `p..` to `q..`, writing
-/// each force on its first end into `forces` (per axis, with room for `len` rounded up to
-/// [`LANES`]).
+/// Evaluates the `len` springs of one family along a row, from particles `p..` to `q..`, and adds
+/// their forces to the accumulators in `ring` from `a` (first ends) and subtracts them from `b`
+/// (second ends).
 ///
-/// The loop runs over whole vectors: past the row's last spring it reads on into the next
-/// particles and hands on an exact zero instead of their force, so that no spring is left to a
-/// scalar remainder loop eight times slower. Only at the very end of the arrays, where there is
-/// nothing to read on into, does the loop stop at `len`.
+/// The springs in whole vectors go through [`row_blocks`]. When both ends lie on the same row,
+/// the second ends' accumulators overlap the first ends', so their forces wait in `staged` and a
+/// second loop subtracts them (one loop updating both would not vectorise). The last, partial vector is a block padded with springs of zero
+/// force: the accumulators have room past the row, so no spring is left to a scalar remainder
+/// loop eight times slower.
+#[allow(clippy::too_many_arguments)]
 #[inline]
-fn spring_row<T: Real>(
+fn spring_row<'a, T: Real>(
     family: &Family<T>,
-    x: [&[T]; 3],
-    v: [&[T]; 3],
+    x: [&'a [T]; 3],
+    v: [&'a [T]; 3],
     [p, q]: [usize; 2],
     len: usize,
-    forces: [&mut [T]; 3],
+    ring: &mut [Vec<T>; 3],
+    staged: &mut [Vec<T>; 3],
+    [a, b]: [usize; 2],
 ) {
-    let padded = len.next_multiple_of(LANES);
-    let count = if p.max(q) + padded <= x[0].len() { padded } else { len };
-    let [xa, ya, za] = x.map(|axis| &axis[p..p + count]);
-    let [xb, yb, zb] = x.map(|axis| &axis[q..q + count]);
-    let [ua, va, wa] = v.map(|axis| &axis[p..p + count]);
-    let [ub, vb, wb] = v.map(|axis| &axis[q..q + count]);
-    let [fx, fy, fz] = forces.map(|axis| &mut axis[..count]);
-    for i in 0..count {
-        let d = [xb[i] - xa[i], yb[i] - ya[i], zb[i] - za[i], ub[i] - ua[i], vb[i] - va[i], wb[i] - wa[i]];
-        let force = springs::branch_free_force(family.stiffness, family.rest_length, family.damping, d);
-        let force = if i < len { force } else { [T::ZERO; 3] };
-        (fx[i], fy[i], fz[i]) = (force[0], force[1], force[2]);
+    let whole = len - len % LANES;
+    let blocks_of = |at: usize| {
+        let [x0, x1, x2] = x.map(|axis| axis[at..at + whole].as_chunks::<LANES>().0);
+        let [v0, v1, v2] = v.map(|axis| axis[at..at + whole].as_chunks::<LANES>().0);
+        [x0, x1, x2, v0, v1, v2]
+    };
+    let (ends_a, ends_b) = (blocks_of(p), blocks_of(q));
+    let overlapping = a.abs_diff(b) < whole;
+    if overlapping {
+        let first = ring.each_mut().map(|axis| axis[a..a + whole].as_chunks_mut::<LANES>().0);
+        let second = staged.each_mut().map(|axis| axis[..whole].as_chunks_mut::<LANES>().0);
+        row_blocks::<T, false>(family, ends_a, ends_b, first, second);
+    } else {
+        let [(xa, xb), (ya, yb), (za, zb)] = ring.each_mut().map(|axis| {
+            let (low, high) = axis.split_at_mut(a.max(b));
+            let (low, high) = (&mut low[a.min(b)..a.min(b) + whole], &mut high[..whole]);
+            let (low, high) = (low.as_chunks_mut::<LANES>().0, high.as_chunks_mut::<LANES>().0);
+            if a < b { (low, high) } else { (high, low) }
+        });
+        row_blocks::<T, true>(family, ends_a, ends_b, [xa, ya, za], [xb, yb, zb]);
+    }
+    if whole < len {
+        let ends_a = blocks::padded(x, v, p + whole, len - whole);
+        let ends_b = blocks::padded(x, v, q + whole, len - whole);
+        let rest = [family.rest_length; LANES];
+        let forces =
+            blocks::forces(family.stiffness, family.damping, &rest, ends_a.each_ref(), ends_b.each_ref());
+        blocks::subtract(ring.each_mut().map(Vec::as_mut_slice), b + whole, LANES, &forces);
+        blocks::add(ring.each_mut().map(Vec::as_mut_slice), a + whole, LANES, &forces);
+    }
+    if overlapping {
+        for (acc, staged) in ring.iter_mut().zip(staged.iter()) {
+            for (f, &g) in acc[b..b + whole].iter_mut().zip(&staged[..whole]) {
+                *f -= g;
+            }
+        }
+    }
+}
+
+/// Evaluates a family's springs block by block, from the ends `ends_a` to `ends_b` (positions
+/// then velocities, per component), adding each block's forces to `first` and either subtracting
+/// them from `second` (`SUBTRACT`) or writing them there.
+#[inline(always)]
+fn row_blocks<T: Real, const SUBTRACT: bool>(
+    family: &Family<T>,
+    ends_a: [&[[T; LANES]]; 6],
+    ends_b: [&[[T; LANES]]; 6],
+    first: [&mut [[T; LANES]]; 3],
+    second: [&mut [[T; LANES]]; 3],
+) {
+    let rest = [family.rest_length; LANES];
+    let [xa, ya, za, ua, va, wa] = ends_a;
+    let [xb, yb, zb, ub, vb, wb] = ends_b;
+    let [fx, fy, fz] = first;
+    let [gx, gy, gz] = second;
+    for block in 0..xa.len() {
+        let ends_a = [&xa[block], &ya[block], &za[block], &ua[block], &va[block], &wa[block]];
+        let ends_b = [&xb[block], &yb[block], &zb[block], &ub[block], &vb[block], &wb[block]];
+        let forces = blocks::forces(family.stiffness, family.damping, &rest, ends_a, ends_b);
+        let first = [&mut fx[block], &mut fy[block], &mut fz[block]];
+        let second = [&mut gx[block], &mut gy[block], &mut gz[block]];
+        for ((first, second), lanes) in first.into_iter().zip(second).zip(&forces) {
+            if SUBTRACT {
+                for lane in 0..LANES {
+                    second[lane] -= lanes[lane];
+                }
+            } else {
+                *second = *lanes;
+            }
+            for lane in 0..LANES {
+                first[lane] += lanes[lane];
+            }
+        }
     }
 }
 

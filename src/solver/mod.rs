@@ -18,6 +18,7 @@ pub mod parallel;
 mod real;
 mod self_collision;
 mod simulation;
+mod spring_blocks;
 mod spring_runs;
 mod springs;
 mod stability;

@@ -30,11 +30,9 @@ use std::ops::Range;
 use rayon::prelude::*;
 
 use super::model::Spring;
-use super::springs::{self, direction};
+use super::spring_blocks::{self as blocks, LANES};
+use super::springs::direction;
 use super::{Real, Vec3, Vectors, parallel};
-
-/// Springs evaluated side by side: eight `f32` fill an AVX2 register.
-const LANES: usize = 8;
 
 /// The shortest run worth a vector block; shorter ones are evaluated one spring at a time.
 const MIN_RUN: usize = 4;
@@ -236,20 +234,21 @@ fn run_springs<T: Real>(
 ) {
     let mut k = springs.start;
     while k + LANES <= springs.end {
-        let ends_a = whole_block(x, v, run.first + k);
-        let ends_b = whole_block(x, v, run.second + k);
+        let ends_a = blocks::whole(x, v, run.first + k);
+        let ends_b = blocks::whole(x, v, run.second + k);
         let rest: &[T; LANES] = rest[k..k + LANES].try_into().expect("a whole block");
-        let block = spring_block(run, rest, ends_a, ends_b);
+        let block = blocks::forces(run.stiffness, run.damping, rest, ends_a, ends_b);
         put(out, run, k, LANES, low, ends, &block);
         k += LANES;
     }
     if k < springs.end {
         let count = springs.end - k;
-        let ends_a = padded_block(x, v, run.first + k, count);
-        let ends_b = padded_block(x, v, run.second + k, count);
+        let ends_a = blocks::padded(x, v, run.first + k, count);
+        let ends_b = blocks::padded(x, v, run.second + k, count);
         let mut rest_block = [T::ZERO; LANES];
         rest_block[..count].copy_from_slice(&rest[k..k + count]);
-        let block = spring_block(run, &rest_block, ends_a.each_ref(), ends_b.each_ref());
+        let block =
+            blocks::forces(run.stiffness, run.damping, &rest_block, ends_a.each_ref(), ends_b.each_ref());
         put(out, run, k, count, low, ends, &block);
     }
 }
@@ -264,88 +263,14 @@ fn put<T: Real>(
     count: usize,
     low: usize,
     ends: Ends,
-    block: &[[T; LANES]; 3],
+    block: &blocks::Forces<T>,
 ) {
     if ends != Ends::First {
-        subtract_block(out, run.second + k - low, count, block);
+        blocks::subtract(out.each_mut().map(|axis| &mut **axis), run.second + k - low, count, block);
     }
     if ends != Ends::Second {
-        add_block(out, run.first + k - low, count, block);
+        blocks::add(out.each_mut().map(|axis| &mut **axis), run.first + k - low, count, block);
     }
-}
-
-/// Adds the first `count` lanes of `block` to `out` from `start`.
-#[inline(always)]
-fn add_block<T: Real>(out: &mut [&mut [T]; 3], start: usize, count: usize, block: &[[T; LANES]; 3]) {
-    for (axis, lanes) in out.iter_mut().zip(block) {
-        if count == LANES {
-            let axis: &mut [T; LANES] = (&mut axis[start..start + LANES]).try_into().expect("a whole block");
-            for lane in 0..LANES {
-                axis[lane] += lanes[lane];
-            }
-        } else {
-            for (f, &g) in axis[start..start + count].iter_mut().zip(lanes) {
-                *f += g;
-            }
-        }
-    }
-}
-
-/// Subtracts the first `count` lanes of `block` from `out` from `start`.
-#[inline(always)]
-fn subtract_block<T: Real>(out: &mut [&mut [T]; 3], start: usize, count: usize, block: &[[T; LANES]; 3]) {
-    for (axis, lanes) in out.iter_mut().zip(block) {
-        if count == LANES {
-            let axis: &mut [T; LANES] = (&mut axis[start..start + LANES]).try_into().expect("a whole block");
-            for lane in 0..LANES {
-                axis[lane] -= lanes[lane];
-            }
-        } else {
-            for (f, &g) in axis[start..start + count].iter_mut().zip(lanes) {
-                *f -= g;
-            }
-        }
-    }
-}
-
-/// The positions then velocities of the `LANES` consecutive particles from `first`, per
-/// component, read in place.
-#[inline(always)]
-fn whole_block<'a, T: Real>(x: [&'a [T]; 3], v: [&'a [T]; 3], first: usize) -> [&'a [T; LANES]; 6] {
-    let [x0, x1, x2] =
-        x.map(|axis| <&[T; LANES]>::try_from(&axis[first..first + LANES]).expect("a whole block"));
-    let [v0, v1, v2] =
-        v.map(|axis| <&[T; LANES]>::try_from(&axis[first..first + LANES]).expect("a whole block"));
-    [x0, x1, x2, v0, v1, v2]
-}
-
-/// The positions then velocities of `count < LANES` consecutive particles from `first`, per
-/// component, padded with zeros (coincident ends, whose force is zero).
-#[inline(always)]
-fn padded_block<T: Real>(x: [&[T]; 3], v: [&[T]; 3], first: usize, count: usize) -> [[T; LANES]; 6] {
-    let mut block = [[T::ZERO; LANES]; 6];
-    for (lanes, axis) in block.iter_mut().zip(x.into_iter().chain(v)) {
-        lanes[..count].copy_from_slice(&axis[first..first + count]);
-    }
-    block
-}
-
-/// The forces on the first ends of a block of springs, per axis (see
-/// [`springs::branch_free_force`]).
-#[inline(always)]
-fn spring_block<T: Real>(
-    run: &Run<T>,
-    rest: &[T; LANES],
-    a: [&[T; LANES]; 6],
-    b: [&[T; LANES]; 6],
-) -> [[T; LANES]; 3] {
-    let mut block = [[T::ZERO; LANES]; 3];
-    for lane in 0..LANES {
-        let d = std::array::from_fn(|k| b[k][lane] - a[k][lane]);
-        let [fx, fy, fz] = springs::branch_free_force(run.stiffness, rest[lane], run.damping, d);
-        (block[0][lane], block[1][lane], block[2][lane]) = (fx, fy, fz);
-    }
-    block
 }
 
 /// Sorts springs into runs of at least [`MIN_RUN`] and at most [`MAX_RUN`] springs, sorted by

@@ -71,7 +71,7 @@ impl<T: Real> StrainLimit<T> {
             }
             let mut worst = T::ZERO;
             // Alternating the direction carries corrections both ways along a chain of springs.
-            let forward = self.last_sweeps % 2 == 0;
+            let forward = self.last_sweeps.is_multiple_of(2);
             for k in 0..springs.len() {
                 let s = &springs[if forward { k } else { springs.len() - 1 - k }];
                 let (i, j) = (s.i as usize, s.j as usize);

@@ -218,7 +218,7 @@ fn zero_pinned<T: Real>(field: &mut Field<T>, pinned: &[usize]) {
 #[inline]
 fn parents<T: Real>(i: usize, coarse: usize) -> [(usize, T); 2] {
     let half = T::from_f64(0.5);
-    if i % 2 == 0 {
+    if i.is_multiple_of(2) {
         [(i / 2, T::ONE), (i / 2, T::ZERO)]
     } else if i.div_ceil(2) < coarse {
         [(i / 2, half), (i.div_ceil(2), half)]
