@@ -5,7 +5,7 @@
 //! A force that a scene does not have is `None` and costs nothing. Wind keeps scratch (vertex
 //! normals), so an evaluation takes `&mut self`.
 
-use super::grid_springs::{self, BodyTerms, GridSprings};
+use super::grid_springs::{self, AccelerationRows, BodyTerms, GridSprings};
 use super::model::{Model, Spring, SpringGrid};
 use super::spring_runs::SpringRuns;
 use super::wind::{Wind, WindConfig};
@@ -133,9 +133,11 @@ impl<T: Real> Dynamics<T> {
         (&mut self.grids[0], terms)
     }
 
-    /// Whether [`symplectic_step`](Self::symplectic_step) can advance this scene: one grid body
-    /// that is every particle, and no other force than gravity, drag and its springs.
-    pub(crate) fn has_fused_symplectic_step(&self) -> bool {
+    /// Whether this scene's passes can fuse the forces with what an integrator does with them
+    /// ([`symplectic_step`](Self::symplectic_step),
+    /// [`accelerations_by_rows`](Self::accelerations_by_rows)): one grid body that is every
+    /// particle, and no other force than gravity, drag and its springs.
+    pub(crate) fn has_fused_passes(&self) -> bool {
         matches!(self.grids.as_slice(), [grid] if grid.particles() == (0..self.masses.len()))
             && self.wind.is_none()
             && self.listed_springs.is_empty()
@@ -143,21 +145,40 @@ impl<T: Real> Dynamics<T> {
 
     /// One symplectic Euler step from `state` into `next` in a single pass over the particles,
     /// the forces never stored (see [`GridSprings::symplectic_step`]), for a scene that
-    /// [has one](Self::has_fused_symplectic_step). Returns the stability watch's sums over `next`
+    /// [has one](Self::has_fused_passes). Returns the stability watch's sums over `next`
     /// (`Σ m |v|²` and the sum of every position component), or `None`, having done nothing, for
     /// any other scene.
     pub(crate) fn symplectic_step(&mut self, state: &State<T>, next: &mut State<T>, h: T) -> Option<(T, T)> {
-        if !self.has_fused_symplectic_step() {
+        if !self.has_fused_passes() {
             return None;
         }
         let (grid, inputs) = self.grid_and_body_terms();
         Some(grid.symplectic_step(&inputs, h, state, next))
     }
 
+    /// For a scene that [has fused passes](Self::has_fused_passes): computes the accelerations at
+    /// `(x, v)` row by row and hands each row to `update` with its part of `outputs` (arrays over
+    /// every particle), in one pass (see [`GridSprings::accelerations_by_rows`]). Returns
+    /// `false`, having done nothing, for any other scene.
+    pub(crate) fn accelerations_by_rows<const O: usize>(
+        &mut self,
+        x: &Vectors<T>,
+        v: &Vectors<T>,
+        outputs: [&mut [T]; O],
+        update: &impl AccelerationRows<T, O>,
+    ) -> bool {
+        if !self.has_fused_passes() {
+            return false;
+        }
+        let (grid, inputs) = self.grid_and_body_terms();
+        grid.accelerations_by_rows(&inputs, x, v, outputs, update);
+        true
+    }
+
     /// Acceleration of each particle at state `(x, v)` and time `t`, written into
     /// `accelerations`; zero for pinned particles.
     pub fn accelerations(&mut self, x: &Vectors<T>, v: &Vectors<T>, t: f64, accelerations: &mut Vectors<T>) {
-        if self.has_fused_symplectic_step() {
+        if self.has_fused_passes() {
             // One grid and nothing else: forces and division in one pass over the rows.
             let (grid, inputs) = self.grid_and_body_terms();
             grid.accelerations(&inputs, x, v, accelerations);

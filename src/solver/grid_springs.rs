@@ -25,8 +25,6 @@
 
 use std::ops::Range;
 
-use rayon::prelude::*;
-
 use super::model::{Model, Spring, SpringGrid};
 use super::spring_blocks::{self as blocks, LANES};
 use super::{Real, State, Vec3, Vectors, parallel};
@@ -71,14 +69,16 @@ struct Band<T> {
     staged: [Vec<T>; 3],
     /// Per column: `Σ m |v|²` and `Σ (x + y + z)` over the band's rows, for the stability watch.
     columns: [Vec<T>; 2],
+    /// The totals of `columns` after the last symplectic step.
+    sums: (T, T),
 }
 
 /// What a band does with its rows' forces. Rows are numbered from the band's first.
 trait RowSink<T> {
     /// Sets the force a row starts from, before any spring adds to it.
     fn start(&mut self, row: usize, force: [&mut [T]; 3]);
-    /// Takes a row's force once every spring has added to it.
-    fn finish(&mut self, row: usize, force: [&[T]; 3]);
+    /// Takes a row's force once every spring has added to it (and may overwrite it).
+    fn finish(&mut self, row: usize, force: [&mut [T]; 3]);
 }
 
 /// A cloth body whose springs are evaluated by stencil, with its per-band scratch.
@@ -87,8 +87,6 @@ pub(crate) struct GridSprings<T> {
     first: usize,
     springs: Range<usize>,
     layout: Layout<T>,
-    /// Rows per band (the last band may have fewer).
-    band_rows: usize,
     bands: Vec<Band<T>>,
 }
 
@@ -162,9 +160,10 @@ impl<T: Real> GridSprings<T> {
                 ring: std::array::from_fn(|_| vec![T::ZERO; (layout.reach + 2) * layout.stride()]),
                 staged: std::array::from_fn(|_| vec![T::ZERO; layout.stride()]),
                 columns: std::array::from_fn(|_| vec![T::ZERO; layout.nx]),
+                sums: (T::ZERO, T::ZERO),
             })
             .collect();
-        Self { first, springs, layout, band_rows, bands }
+        Self { first, springs, layout, bands }
     }
 
     /// The particles of the body.
@@ -181,22 +180,10 @@ impl<T: Real> GridSprings<T> {
     pub fn add_forces(&mut self, x: &Vectors<T>, v: &Vectors<T>, forces: &mut Vectors<T>) {
         let range = self.particles();
         let (x, v) = (x.range(range.clone()), v.range(range.clone()));
-        let nx = self.layout.nx;
-        let layout = &self.layout;
-        let [fx, fy, fz] = forces.range_mut(range);
-        if let [band] = self.bands.as_mut_slice() {
-            band.sweep(layout, x, v, &mut AddTo { nx, out: [fx, fy, fz] });
-            return;
-        }
-        let chunk = self.band_rows * nx;
-        (
-            self.bands.par_iter_mut(),
-            fx.par_chunks_mut(chunk),
-            fy.par_chunks_mut(chunk),
-            fz.par_chunks_mut(chunk),
-        )
-            .into_par_iter()
-            .for_each(|(band, fx, fy, fz)| band.sweep(layout, x, v, &mut AddTo { nx, out: [fx, fy, fz] }));
+        let (nx, layout) = (self.layout.nx, &self.layout);
+        in_bands(&mut self.bands, nx, forces.range_mut(range), &|band, out| {
+            band.sweep(layout, x, v, &mut AddTo { nx, out });
+        });
     }
 
     /// The acceleration of every particle of the body (gravity, drag and the springs, over the
@@ -210,39 +197,33 @@ impl<T: Real> GridSprings<T> {
         out: &mut Vectors<T>,
     ) {
         let range = self.particles();
+        self.accelerations_by_rows(inputs, x, v, out.range_mut(range), &Store);
+    }
+
+    /// Computes the accelerations of the body's particles row by row, as
+    /// [`accelerations`](Self::accelerations) does, and hands each row to `update` with the
+    /// row's part of `outputs` (arrays over the body's particles), in the same pass: what an
+    /// integrator does with the accelerations costs no pass of its own.
+    pub fn accelerations_by_rows<const O: usize>(
+        &mut self,
+        inputs: &BodyTerms<T>,
+        x: &Vectors<T>,
+        v: &Vectors<T>,
+        outputs: [&mut [T]; O],
+        update: &impl AccelerationRows<T, O>,
+    ) {
+        let range = self.particles();
         let (x, v) = (x.range(range.clone()), v.range(range.clone()));
         let masses = &inputs.masses[range.clone()];
         let inverse_masses = &inputs.inverse_masses[range.clone()];
-        let nx = self.layout.nx;
-        let layout = &self.layout;
-        let [ax, ay, az] = out.range_mut(range);
-        let sink = |first_row: usize, out| Accelerations {
-            body: BodyForce {
-                offset: first_row * nx,
-                nx,
-                v,
-                masses,
-                gravity: inputs.gravity.to_array(),
-                drag: inputs.drag,
-            },
-            inverse_masses,
-            out,
-        };
-        if let [band] = self.bands.as_mut_slice() {
-            band.sweep(layout, x, v, &mut sink(0, [ax, ay, az]));
-            return;
-        }
-        let chunk = self.band_rows * nx;
-        (
-            self.bands.par_iter_mut(),
-            ax.par_chunks_mut(chunk),
-            ay.par_chunks_mut(chunk),
-            az.par_chunks_mut(chunk),
-        )
-            .into_par_iter()
-            .for_each(|(band, ax, ay, az)| {
-                band.sweep(layout, x, v, &mut sink(band.rows.start, [ax, ay, az]))
-            });
+        let (nx, layout, first) = (self.layout.nx, &self.layout, self.first);
+        in_bands(&mut self.bands, nx, outputs, &|band, outputs| {
+            let offset = band.rows.start * nx;
+            let body =
+                BodyForce { offset, nx, v, masses, gravity: inputs.gravity.to_array(), drag: inputs.drag };
+            let sink = &mut Accelerations { body, first, inverse_masses, outputs, update };
+            band.sweep(layout, x, v, sink);
+        });
     }
 
     /// One symplectic Euler step of the body from `state` into `next` (`v' = v + h f / m`, then
@@ -260,47 +241,72 @@ impl<T: Real> GridSprings<T> {
         let (x, v) = (state.positions.range(range.clone()), state.velocities.range(range.clone()));
         let masses = &inputs.masses[range.clone()];
         let inverse_masses = &inputs.inverse_masses[range.clone()];
-        let nx = self.layout.nx;
-        let layout = &self.layout;
+        let (nx, layout) = (self.layout.nx, &self.layout);
         let [px, py, pz] = next.positions.range_mut(range.clone());
         let [vx, vy, vz] = next.velocities.range_mut(range);
-        let update = |first_row: usize, positions, velocities, columns| SymplecticUpdate {
-            offset: first_row * nx,
-            nx,
-            x,
-            v,
-            masses,
-            inverse_masses,
-            gravity: inputs.gravity.to_array(),
-            drag: inputs.drag,
-            h,
-            positions,
-            velocities,
-            columns,
-        };
-        if let [band] = self.bands.as_mut_slice() {
-            let mut sink = update(0, [px, py, pz], [vx, vy, vz], band.take_columns());
+        in_bands(&mut self.bands, nx, [px, py, pz, vx, vy, vz], &|band, [px, py, pz, vx, vy, vz]| {
+            let mut sink = SymplecticUpdate {
+                offset: band.rows.start * nx,
+                nx,
+                x,
+                v,
+                masses,
+                inverse_masses,
+                gravity: inputs.gravity.to_array(),
+                drag: inputs.drag,
+                h,
+                positions: [px, py, pz],
+                velocities: [vx, vy, vz],
+                columns: band.take_columns(),
+            };
             band.sweep(layout, x, v, &mut sink);
-            return band.put_back_columns(sink.columns);
+            band.put_back_columns(sink.columns);
+        });
+        // Band by band, in order: the same sums whichever thread ran which band.
+        self.bands.iter().fold((T::ZERO, T::ZERO), |(k, p), band| (k + band.sums.0, p + band.sums.1))
+    }
+}
+
+/// Runs `work` on every band with its rows' part of `outputs` (rows of `nx` particles from the
+/// first band's), the bands side by side on the solver's threads: halves of the bands are
+/// `rayon::join`ed, which allocates nothing.
+fn in_bands<T: Send, const O: usize>(
+    bands: &mut [Band<T>],
+    nx: usize,
+    outputs: [&mut [T]; O],
+    work: &(impl Fn(&mut Band<T>, [&mut [T]; O]) + Sync),
+) {
+    if let [band] = bands {
+        work(band, outputs);
+        return;
+    }
+    let middle = bands.len() / 2;
+    let split = (bands[middle].rows.start - bands[0].rows.start) * nx;
+    let (low_bands, high_bands) = bands.split_at_mut(middle);
+    let mut low: [&mut [T]; O] = [(); O].map(|_| Default::default());
+    let mut high: [&mut [T]; O] = [(); O].map(|_| Default::default());
+    for ((low, high), output) in low.iter_mut().zip(&mut high).zip(outputs) {
+        (*low, *high) = output.split_at_mut(split);
+    }
+    rayon::join(|| in_bands(low_bands, nx, low, work), || in_bands(high_bands, nx, high, work));
+}
+
+/// What a pass computing accelerations row by row does with each row of them, given the row's
+/// part of its `O` output arrays.
+pub(crate) trait AccelerationRows<T, const O: usize>: Sync {
+    /// Takes the accelerations `a` of the particles `particles` (indices into the whole state),
+    /// with the same particles of each output.
+    fn take(&self, particles: Range<usize>, a: [&[T]; 3], outputs: [&mut [T]; O]);
+}
+
+/// Writes the accelerations into the three outputs, one per axis.
+struct Store;
+
+impl<T: Real> AccelerationRows<T, 3> for Store {
+    fn take(&self, _: Range<usize>, a: [&[T]; 3], outputs: [&mut [T]; 3]) {
+        for (out, a) in outputs.into_iter().zip(a) {
+            out.copy_from_slice(a);
         }
-        let chunk = self.band_rows * nx;
-        let outputs = (
-            px.par_chunks_mut(chunk),
-            py.par_chunks_mut(chunk),
-            pz.par_chunks_mut(chunk),
-            vx.par_chunks_mut(chunk),
-            vy.par_chunks_mut(chunk),
-            vz.par_chunks_mut(chunk),
-        );
-        let mut band_sums = [(T::ZERO, T::ZERO); MAX_BANDS];
-        (self.bands.par_iter_mut(), band_sums.par_iter_mut(), outputs.into_par_iter())
-            .into_par_iter()
-            .for_each(|(band, sums, (px, py, pz, vx, vy, vz))| {
-                let mut sink = update(band.rows.start, [px, py, pz], [vx, vy, vz], band.take_columns());
-                band.sweep(layout, x, v, &mut sink);
-                *sums = band.put_back_columns(sink.columns);
-            });
-        band_sums.iter().fold((T::ZERO, T::ZERO), |(k, p), &(bk, bp)| (k + bk, p + bp))
     }
 }
 
@@ -314,12 +320,12 @@ impl<T: Real> Band<T> {
         columns
     }
 
-    /// Keeps the column sums for the next step and returns their totals, summed column by column.
-    fn put_back_columns(&mut self, columns: [Vec<T>; 2]) -> (T, T) {
+    /// Keeps the column sums for the next step and their totals, summed column by column, in
+    /// `sums`.
+    fn put_back_columns(&mut self, columns: [Vec<T>; 2]) {
         let total = |column: &Vec<T>| column.iter().fold(T::ZERO, |sum, &c| sum + c);
-        let sums = (total(&columns[0]), total(&columns[1]));
+        self.sums = (total(&columns[0]), total(&columns[1]));
         self.columns = columns;
-        sums
     }
 
     /// Evaluates every spring that reaches the band's rows, row after row, handing each row's
@@ -367,7 +373,7 @@ impl<T: Real> Band<T> {
                 let slot = j % (reach + 1);
                 sink.finish(
                     j - first,
-                    self.ring.each_ref().map(|axis| &axis[slot * stride..slot * stride + nx]),
+                    self.ring.each_mut().map(|axis| &mut axis[slot * stride..slot * stride + nx]),
                 );
             }
         }
@@ -497,7 +503,7 @@ impl<T: Real> RowSink<T> for AddTo<'_, T> {
         }
     }
 
-    fn finish(&mut self, row: usize, force: [&[T]; 3]) {
+    fn finish(&mut self, row: usize, force: [&mut [T]; 3]) {
         let cells = row * self.nx..(row + 1) * self.nx;
         for (out, f) in self.out.iter_mut().zip(force) {
             out[cells.clone()].copy_from_slice(f);
@@ -551,29 +557,36 @@ impl<T: Real> BodyForce<'_, T> {
     }
 }
 
-/// A sink that writes each row's acceleration, its force times the inverse mass.
-struct Accelerations<'a, T> {
+/// A sink that turns each row's force into accelerations, its force times the inverse mass, and
+/// hands them to an [`AccelerationRows`].
+struct Accelerations<'a, T, U, const O: usize> {
     body: BodyForce<'a, T>,
+    /// The body's first particle in the whole state.
+    first: usize,
     inverse_masses: &'a [T],
-    /// The band's accelerations.
-    out: [&'a mut [T]; 3],
+    /// The band's outputs.
+    outputs: [&'a mut [T]; O],
+    update: &'a U,
 }
 
-impl<T: Real> RowSink<T> for Accelerations<'_, T> {
+impl<T: Real, U: AccelerationRows<T, O>, const O: usize> RowSink<T> for Accelerations<'_, T, U, O> {
     fn start(&mut self, row: usize, force: [&mut [T]; 3]) {
         self.body.start(row, force);
     }
 
-    fn finish(&mut self, row: usize, force: [&[T]; 3]) {
+    fn finish(&mut self, row: usize, mut force: [&mut [T]; 3]) {
         let nx = self.body.nx;
         let local = row * nx..(row + 1) * nx;
-        let inverse_masses =
-            &self.inverse_masses[self.body.offset + local.start..self.body.offset + local.end];
-        for (out, f) in self.out.iter_mut().zip(force) {
-            for ((a, &f), &w) in out[local.clone()].iter_mut().zip(f).zip(inverse_masses) {
-                *a = f * w;
+        let cells = self.body.offset + local.start..self.body.offset + local.end;
+        let inverse_masses = &self.inverse_masses[cells.clone()];
+        for f in force.each_mut() {
+            for (f, &w) in f.iter_mut().zip(inverse_masses) {
+                *f *= w;
             }
         }
+        let particles = self.first + cells.start..self.first + cells.end;
+        let outputs = self.outputs.each_mut().map(|out| &mut out[local.clone()]);
+        self.update.take(particles, force.each_ref().map(|a| &**a), outputs);
     }
 }
 
@@ -590,7 +603,7 @@ impl<T: Real> RowSink<T> for SymplecticUpdate<'_, T> {
         body.start(row, force);
     }
 
-    fn finish(&mut self, row: usize, force: [&[T]; 3]) {
+    fn finish(&mut self, row: usize, force: [&mut [T]; 3]) {
         let local = row * self.nx..(row + 1) * self.nx;
         let cells = self.offset + local.start..self.offset + local.end;
         let inverse_masses = &self.inverse_masses[cells.clone()];
@@ -708,6 +721,35 @@ mod tests {
         assert!(one.iter().any(|f| f.length() > 1.0));
         for count in 2..=5 {
             assert_eq!(forces(count), one, "{count} bands");
+        }
+    }
+
+    #[test]
+    fn accelerations_do_not_depend_on_the_number_of_bands() {
+        let (model, x, v) = moving_cloth();
+        let n = x.len();
+        let masses: Vec<f64> = (0..n).map(|p| 0.01 + 0.001 * p as f64).collect();
+        let inverse_masses: Vec<f64> =
+            masses.iter().enumerate().map(|(p, m)| if p == 3 { 0.0 } else { 1.0 / m }).collect();
+        let inputs = BodyTerms {
+            masses: &masses,
+            inverse_masses: &inverse_masses,
+            gravity: Vec3::new(0.0, -9.81, 0.0),
+            drag: 0.3,
+        };
+        let accelerations = |count: usize| {
+            let mut out = Vectors::zeros(n);
+            banded(&model, count).accelerations(&inputs, &x, &v, &mut out);
+            out
+        };
+        let one = accelerations(1);
+        assert_eq!(one.get(3), Vec3::ZERO, "a pinned particle does not accelerate");
+        let mut forces = Vectors::zeros(n);
+        springs::add_forces(&model.springs, &x, &v, &mut forces);
+        let f = forces.get(40) + (inputs.gravity - v.get(40) * 0.3) * masses[40];
+        assert!((one.get(40) - f * inverse_masses[40]).length() < 1e-9 * f.length() * inverse_masses[40]);
+        for count in 2..=5 {
+            assert_eq!(accelerations(count), one, "{count} bands");
         }
     }
 

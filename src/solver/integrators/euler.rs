@@ -20,7 +20,7 @@ impl<T: Real> Euler<T> {
     /// accelerations otherwise.
     pub fn symplectic(dynamics: &Dynamics<T>) -> Self {
         let n = dynamics.masses.len();
-        if dynamics.has_fused_symplectic_step() {
+        if dynamics.has_fused_passes() {
             let next = State { positions: Vectors::zeros(n), velocities: Vectors::zeros(n) };
             Self { accelerations: Vectors::zeros(0), next: Some(next) }
         } else {

@@ -90,7 +90,7 @@ pub(crate) enum Stepper<T> {
     ExplicitEuler(euler::Euler<T>),
     SymplecticEuler(euler::Euler<T>),
     Verlet(verlet::Verlet<T>),
-    Rk4(rk4::Rk4<T>),
+    Rk4(Box<rk4::Rk4<T>>),
     ImplicitEuler(Box<implicit::Implicit<T>>),
 }
 
@@ -101,7 +101,7 @@ impl<T: Real> Stepper<T> {
             IntegratorKind::ExplicitEuler => Self::ExplicitEuler(euler::Euler::new(n)),
             IntegratorKind::SymplecticEuler => Self::SymplecticEuler(euler::Euler::symplectic(dynamics)),
             IntegratorKind::Verlet => Self::Verlet(verlet::Verlet::new(n, settings.verlet_damping)),
-            IntegratorKind::Rk4 => Self::Rk4(rk4::Rk4::new(n)),
+            IntegratorKind::Rk4 => Self::Rk4(Box::new(rk4::Rk4::new(dynamics))),
             IntegratorKind::ImplicitEuler => {
                 Self::ImplicitEuler(Box::new(implicit::Implicit::new(dynamics, settings)))
             }

@@ -1,13 +1,24 @@
 //! The classic fourth-order Runge-Kutta method, with forces re-evaluated at each of the four
 //! stages on the whole state.
+//!
+//! For a scene whose passes fuse ([`Dynamics::has_fused_passes`]), each stage's update is done
+//! row by row inside the pass that computes the stage's accelerations, which are never stored:
+//! one pass per stage instead of two. The trial states then alternate between two buffers, since
+//! a pass still reads rows of its input after it has written the rows before them. Both ways
+//! perform the same operations on the same values, so they give the same bits.
+
+use std::ops::Range;
 
 use super::super::dynamics::Dynamics;
+use super::super::grid_springs::AccelerationRows;
 use super::super::{Real, State, Vectors, parallel};
 
 #[derive(Debug)]
 pub(crate) struct Rk4<T> {
     /// Trial state of the current stage.
     trial: State<T>,
+    /// For a scene whose passes fuse, the other trial state.
+    other_trial: Option<State<T>>,
     /// Acceleration at the trial state.
     accelerations: Vectors<T>,
     /// Weighted sums `k1 + 2k2 + 2k3 + k4` for x and v.
@@ -19,11 +30,14 @@ pub(crate) struct Rk4<T> {
 }
 
 impl<T: Real> Rk4<T> {
-    pub fn new(particles: usize) -> Self {
+    pub fn new(dynamics: &Dynamics<T>) -> Self {
+        let particles = dynamics.masses.len();
         let zeros = || Vectors::zeros(particles);
+        let fused = dynamics.has_fused_passes();
         Self {
             trial: State { positions: zeros(), velocities: zeros() },
-            accelerations: zeros(),
+            other_trial: fused.then(|| State { positions: zeros(), velocities: zeros() }),
+            accelerations: if fused { Vectors::zeros(0) } else { zeros() },
             sum_x: zeros(),
             sum_v: zeros(),
             chunk: particles.div_ceil(parallel::band_count(particles, particles, 1)).max(1),
@@ -31,6 +45,10 @@ impl<T: Real> Rk4<T> {
     }
 
     pub fn step(&mut self, state: &mut State<T>, dynamics: &mut Dynamics<T>, t: f64, h: T) {
+        if self.other_trial.is_some() {
+            self.fused_step(state, dynamics, h);
+            return;
+        }
         let half = h * T::from_f64(0.5);
         let two = T::from_f64(2.0);
         let chunk = self.chunk;
@@ -95,6 +113,114 @@ impl<T: Real> Rk4<T> {
             });
         }
     }
+
+    /// The step with each stage's update fused into its accelerations pass.
+    fn fused_step(&mut self, state: &mut State<T>, dynamics: &mut Dynamics<T>, h: T) {
+        let half = h * T::from_f64(0.5);
+        let Self { trial, other_trial, sum_x, sum_v, .. } = self;
+        let other = other_trial.as_mut().expect("a fused step has two trial states");
+        let [x0, v0] = [state.positions.axes(), state.velocities.axes()];
+        let first = Stage { x0, v0, v: v0, first: true, advance: half };
+        fused_stage(dynamics, &first, &state.positions, &state.velocities, sum_x, sum_v, trial);
+        // Stages 2 and 3 at the midpoint, from one trial state into the other and back.
+        let second = Stage { x0, v0, v: trial.velocities.axes(), first: false, advance: half };
+        fused_stage(dynamics, &second, &trial.positions, &trial.velocities, sum_x, sum_v, other);
+        let third = Stage { x0, v0, v: other.velocities.axes(), first: false, advance: h };
+        fused_stage(dynamics, &third, &other.positions, &other.velocities, sum_x, sum_v, trial);
+        let last = Last {
+            sum_x: sum_x.axes(),
+            sum_v: sum_v.axes(),
+            v: trial.velocities.axes(),
+            sixth: h / T::from_f64(6.0),
+        };
+        let [x, y, z] = state.positions.axes_mut();
+        let [u, v, w] = state.velocities.axes_mut();
+        dynamics.accelerations_by_rows(&trial.positions, &trial.velocities, [x, y, z, u, v, w], &last);
+    }
+}
+
+/// Stages 1 to 3 fused into their accelerations pass: with `v` the stage's trial velocity and
+/// `a` its acceleration, adds `v` and `a` to the weighted sums (once in the first stage, twice
+/// after) and writes the next trial state `x0 + v advance`, `v0 + a advance`. The outputs are the
+/// sums of `x` and `v`, then the next trial's positions and velocities, per axis.
+struct Stage<'a, T> {
+    x0: [&'a [T]; 3],
+    v0: [&'a [T]; 3],
+    v: [&'a [T]; 3],
+    first: bool,
+    advance: T,
+}
+
+impl<T: Real> AccelerationRows<T, 12> for Stage<'_, T> {
+    fn take(&self, particles: Range<usize>, a: [&[T]; 3], outputs: [&mut [T]; 12]) {
+        let [sx, sy, sz, su, sv, sw, tx, ty, tz, tu, tv, tw] = outputs;
+        let axes = [[sx, su, tx, tu], [sy, sv, ty, tv], [sz, sw, tz, tw]];
+        let two = T::from_f64(2.0);
+        for (axis, [sum_x, sum_v, trial_x, trial_v]) in axes.into_iter().enumerate() {
+            let (x0, v0, v) = (
+                &self.x0[axis][particles.clone()],
+                &self.v0[axis][particles.clone()],
+                &self.v[axis][particles.clone()],
+            );
+            let sums = sum_x.iter_mut().zip(sum_v.iter_mut());
+            let trials = trial_x.iter_mut().zip(trial_v.iter_mut());
+            let inputs = x0.iter().zip(v0).zip(v.iter().zip(a[axis]));
+            for (((sum_x, sum_v), (trial_x, trial_v)), ((&x0, &v0), (&v, &a))) in sums.zip(trials).zip(inputs)
+            {
+                if self.first {
+                    (*sum_x, *sum_v) = (v, a);
+                } else {
+                    *sum_x += v * two;
+                    *sum_v += a * two;
+                }
+                *trial_x = x0 + v * self.advance;
+                *trial_v = v0 + a * self.advance;
+            }
+        }
+    }
+}
+
+/// One of stages 1 to 3 from the trial state `(x, v)` into `next`.
+fn fused_stage<T: Real>(
+    dynamics: &mut Dynamics<T>,
+    stage: &Stage<T>,
+    x: &Vectors<T>,
+    v: &Vectors<T>,
+    sum_x: &mut Vectors<T>,
+    sum_v: &mut Vectors<T>,
+    next: &mut State<T>,
+) {
+    let [sx, sy, sz] = sum_x.axes_mut();
+    let [su, sv, sw] = sum_v.axes_mut();
+    let [tx, ty, tz] = next.positions.axes_mut();
+    let [tu, tv, tw] = next.velocities.axes_mut();
+    let outputs = [sx, sy, sz, su, sv, sw, tx, ty, tz, tu, tv, tw];
+    dynamics.accelerations_by_rows(x, v, outputs, stage);
+}
+
+/// Stage 4 fused into its accelerations pass: `x += (Σx + v) h / 6`, `v += (Σv + a) h / 6` with
+/// `v` the last trial velocity and `a` its acceleration. The outputs are the state's positions
+/// and velocities, per axis.
+struct Last<'a, T> {
+    sum_x: [&'a [T]; 3],
+    sum_v: [&'a [T]; 3],
+    v: [&'a [T]; 3],
+    sixth: T,
+}
+
+impl<T: Real> AccelerationRows<T, 6> for Last<'_, T> {
+    fn take(&self, particles: Range<usize>, a: [&[T]; 3], outputs: [&mut [T]; 6]) {
+        let [x, y, z, u, v, w] = outputs;
+        for (axis, (x, v)) in [(x, u), (y, v), (z, w)].into_iter().enumerate() {
+            let (sum_x, sum_v) = (&self.sum_x[axis][particles.clone()], &self.sum_v[axis][particles.clone()]);
+            for ((x, &s), &u) in x.iter_mut().zip(sum_x).zip(&self.v[axis][particles.clone()]) {
+                *x += (s + u) * self.sixth;
+            }
+            for ((v, &s), &a) in v.iter_mut().zip(sum_v).zip(a[axis]) {
+                *v += (s + a) * self.sixth;
+            }
+        }
+    }
 }
 
 /// Runs `update` on the particles' outputs and inputs (one axis each, all of one length), cut in
@@ -124,7 +250,52 @@ fn in_pieces<T: Real, const O: usize, const I: usize>(
 
 #[cfg(test)]
 mod tests {
+    use glam::DVec3;
+
+    use super::super::super::{Cloth, Model, Orientation, SpringParams, Vec3};
     use super::*;
+
+    #[test]
+    fn fused_stages_give_the_bits_of_the_stored_accelerations() {
+        // 19 × 23: rows that are not whole vectors, and enough rows for several bands.
+        let mut model = Model::default();
+        model.add_cloth(&Cloth {
+            size: [0.9, 1.1],
+            resolution: [19, 23],
+            center: DVec3::new(0.0, 1.0, 0.0),
+            orientation: Orientation::Vertical,
+            mass: 0.4,
+            velocity: DVec3::new(0.1, 0.0, -0.2),
+            structural: SpringParams { stiffness: 800.0, damping: 0.2 },
+            shear: SpringParams { stiffness: 300.0, damping: 0.1 },
+            bending: SpringParams { stiffness: 40.0, damping: 0.05 },
+            pins: vec![[0, 0], [18, 0]],
+        });
+        let mut dynamics = Dynamics::<f64>::new(&model, DVec3::new(0.0, -9.81, 0.0), 0.3);
+        assert!(dynamics.has_fused_passes());
+        let wave = |p: usize| Vec3::new((0.37 * p as f64).sin(), (0.5 * p as f64).cos(), 0.0) * 0.01;
+        let start = State {
+            positions: model
+                .positions
+                .iter()
+                .enumerate()
+                .map(|(p, &x)| Vec3::from_dvec3(x) + wave(p))
+                .collect(),
+            velocities: (0..model.particle_count()).map(|p| wave(p + 7) * 30.0).collect(),
+        };
+        let mut fused = Rk4::new(&dynamics);
+        let mut stored = Rk4::new(&dynamics);
+        stored.other_trial = None;
+        stored.accelerations = Vectors::zeros(model.particle_count());
+        let (mut a, mut b) = (start.clone(), start.clone());
+        for _ in 0..20 {
+            fused.step(&mut a, &mut dynamics, 0.0, 1e-3);
+            stored.step(&mut b, &mut dynamics, 0.0, 1e-3);
+        }
+        let moved = (a.positions.get(200) - start.positions.get(200)).length();
+        assert!(moved > 1e-3, "the cloth moved {moved} m");
+        assert_eq!((a.positions, a.velocities), (b.positions, b.velocities));
+    }
 
     #[test]
     fn pieces_cover_every_particle_once_whatever_their_size() {
