@@ -425,20 +425,27 @@ fn spring_row<'a, T: Real>(
         let second = staged.each_mut().map(|axis| axis[..whole].as_chunks_mut::<LANES>().0);
         row_blocks::<T, false>(family, ends_a, ends_b, first, second);
     } else {
-        let [(xa, xb), (ya, yb), (za, zb)] = ring.each_mut().map(|axis| {
-            let (low, high) = axis.split_at_mut(a.max(b));
-            let (low, high) = (&mut low[a.min(b)..a.min(b) + whole], &mut high[..whole]);
-            let (low, high) = (low.as_chunks_mut::<LANES>().0, high.as_chunks_mut::<LANES>().0);
-            if a < b { (low, high) } else { (high, low) }
-        });
+        let [rx, ry, rz] = ring;
+        let ((xa, xb), (ya, yb), (za, zb)) =
+            (apart(rx, a, b, whole), apart(ry, a, b, whole), apart(rz, a, b, whole));
         row_blocks::<T, true>(family, ends_a, ends_b, [xa, ya, za], [xb, yb, zb]);
     }
     if whole < len {
-        let ends_a = blocks::padded(x, v, p + whole, len - whole);
-        let ends_b = blocks::padded(x, v, q + whole, len - whole);
-        let rest = [family.rest_length; LANES];
-        let forces =
-            blocks::forces(family.stiffness, family.damping, &rest, ends_a.each_ref(), ends_b.each_ref());
+        let (count, rest) = (len - whole, [family.rest_length; LANES]);
+        let (k, c) = (family.stiffness, family.damping);
+        let forces = if p.max(q) + whole + LANES <= x[0].len() {
+            // Read on into the next row, and drop those springs' forces.
+            let ends = |at| blocks::whole(x, v, at);
+            let mut forces = blocks::forces(k, c, &rest, ends(p + whole), ends(q + whole));
+            for axis in &mut forces {
+                axis[count..].fill(T::ZERO);
+            }
+            forces
+        } else {
+            let ends_a = blocks::padded(x, v, p + whole, count);
+            let ends_b = blocks::padded(x, v, q + whole, count);
+            blocks::forces(k, c, &rest, ends_a.each_ref(), ends_b.each_ref())
+        };
         blocks::subtract(ring.each_mut().map(Vec::as_mut_slice), b + whole, LANES, &forces);
         blocks::add(ring.each_mut().map(Vec::as_mut_slice), a + whole, LANES, &forces);
     }
@@ -449,6 +456,15 @@ fn spring_row<'a, T: Real>(
             }
         }
     }
+}
+
+/// The blocks of `axis` from `a` and from `b`, `len` values each, `len` at most `|a - b|`.
+#[inline(always)]
+fn apart<T>(axis: &mut [T], a: usize, b: usize, len: usize) -> (&mut [[T; LANES]], &mut [[T; LANES]]) {
+    let (low, high) = axis.split_at_mut(a.max(b));
+    let (low, high) = (&mut low[a.min(b)..a.min(b) + len], &mut high[..len]);
+    let (low, high) = (low.as_chunks_mut::<LANES>().0, high.as_chunks_mut::<LANES>().0);
+    if a < b { (low, high) } else { (high, low) }
 }
 
 /// Evaluates a family's springs block by block, from the ends `ends_a` to `ends_b` (positions

@@ -27,11 +27,8 @@ pub(crate) type Forces<T> = [[T; LANES]; 3];
 /// component, read in place.
 #[inline(always)]
 pub(crate) fn whole<'a, T: Real>(x: [&'a [T]; 3], v: [&'a [T]; 3], first: usize) -> Ends<'a, T> {
-    let [x0, x1, x2] =
-        x.map(|axis| <&[T; LANES]>::try_from(&axis[first..first + LANES]).expect("a whole block"));
-    let [v0, v1, v2] =
-        v.map(|axis| <&[T; LANES]>::try_from(&axis[first..first + LANES]).expect("a whole block"));
-    [x0, x1, x2, v0, v1, v2]
+    let block = |axis: &'a [T]| <&[T; LANES]>::try_from(&axis[first..first + LANES]).expect("a whole block");
+    [block(x[0]), block(x[1]), block(x[2]), block(v[0]), block(v[1]), block(v[2])]
 }
 
 /// The positions then velocities of `count < LANES` consecutive particles from `first`, per
