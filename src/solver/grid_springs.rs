@@ -344,6 +344,18 @@ impl<T: Real> Band<T> {
             sink.start(row - first, ring_row(&mut self.ring, row, reach, stride).map(|axis| &mut axis[..nx]));
         }
         for j in first_springs..end {
+            // Row `j + k`'s slot, for `k <= reach`, without a division per spring family.
+            let slot_j = j % (reach + 1);
+            let slot = |row: usize| {
+                let slot = slot_j + (row - j);
+                if !owned(row) {
+                    dropped
+                } else if slot > reach {
+                    slot - (reach + 1)
+                } else {
+                    slot
+                }
+            };
             let entering = j + reach;
             if owned(entering) {
                 sink.start(
@@ -357,7 +369,6 @@ impl<T: Real> Band<T> {
                 if row_a.max(row_b) >= ny || !(owned(row_a) || owned(row_b)) {
                     continue;
                 }
-                let slot = |row: usize| if owned(row) { row % (reach + 1) } else { dropped };
                 spring_row(
                     family,
                     x,
@@ -370,10 +381,9 @@ impl<T: Real> Band<T> {
                 );
             }
             if j >= first {
-                let slot = j % (reach + 1);
                 sink.finish(
                     j - first,
-                    self.ring.each_mut().map(|axis| &mut axis[slot * stride..slot * stride + nx]),
+                    self.ring.each_mut().map(|axis| &mut axis[slot_j * stride..slot_j * stride + nx]),
                 );
             }
         }
