@@ -176,6 +176,26 @@ impl<T: Real> GridOperator<T> {
             }
         }
         self.decouple_pinned(mass);
+        self.update_smoother();
+    }
+
+    /// This operator as a copy of `source` (the same grid and families) rounded to `T`, with its
+    /// own smoother: the preconditioner's copy of the step's system.
+    pub fn copy_from<S: Real>(&mut self, source: &GridOperator<S>) {
+        let pairs =
+            self.diagonal.iter_mut().zip(&source.diagonal).chain(
+                self.couplings.iter_mut().zip(&source.couplings).flat_map(|(a, b)| a.iter_mut().zip(b)),
+            );
+        for (to, from) in pairs {
+            for (t, &f) in to.iter_mut().zip(from) {
+                *t = T::from_f64(f.to_f64());
+            }
+        }
+        self.update_smoother();
+    }
+
+    /// `ω D⁻¹` from the diagonal blocks.
+    fn update_smoother(&mut self) {
         let omega = T::from_f64(JACOBI_DAMPING);
         for p in 0..self.len() {
             let block = Sym3::from_entries(self.diagonal.each_ref().map(|a| a[p]));

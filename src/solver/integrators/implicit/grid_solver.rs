@@ -7,16 +7,34 @@
 //! products. Block Jacobi's iteration count grows with the stiffness ratio `h² k / m` and with
 //! the resolution; one V-cycle removes the error at every wavelength, so the count stays small
 //! and nearly independent of both.
+//!
+//! The V-cycle is always in `f32`. An `f64` run keeps its own `f64` system, on which conjugate
+//! gradients computes its products and residuals, and hands the cycle a rounded copy: most of a
+//! solve's memory traffic is in the cycle's products, and a preconditioner only has to be about
+//! right, so the `f64` solve still reaches its tolerance on its own residual in about the same
+//! number of iterations. An `f32` run assembles its system straight into the cycle's fine level.
+
+use std::any::{Any, TypeId};
 
 use super::super::super::Real;
 use super::super::super::dynamics::Dynamics;
-use super::grid_operator::{Family, Field, zero_field};
+use super::grid_operator::{Family, Field, GridOperator, RightHandSide, zero_field};
 use super::multigrid::Multigrid;
 use super::{SolveOutcome, StepInput, dot_fields, dot_slices};
 
 #[derive(Debug)]
 pub(crate) struct GridSolver<T> {
-    multigrid: Multigrid<T>,
+    /// The step's system, unless `T` is the preconditioner's precision: then the system is the
+    /// multigrid's fine level.
+    system: Option<GridOperator<T>>,
+    families: Vec<Family<T>>,
+    base_mass: Vec<T>,
+    /// `base_mass (1 + h drag)` for the current step.
+    mass: Vec<T>,
+    /// The preconditioner, in `f32` whatever `T`: a V-cycle only needs to be roughly right, and
+    /// in `f32` it streams half the bytes of an `f64` one. The residual and the products that
+    /// conjugate gradients converges on stay in `T`.
+    multigrid: Multigrid<f32>,
     pinned: Vec<usize>,
     rhs: Field<T>,
     /// The solution `Δv`, kept as the next step's starting guess.
@@ -75,12 +93,29 @@ impl<T: Real> GridSolver<T> {
             return None;
         }
         let pinned: Vec<usize> = (0..n).filter(|&p| dynamics.inverse_masses[p] == T::ZERO).collect();
-        let multigrid = Multigrid::new(nx, ny, families, &dynamics.masses, pinned.clone())?;
-        if multigrid.system().is_parallel() {
+        let round = |value: T| value.to_f64() as f32;
+        let low_families = families
+            .iter()
+            .map(|f| Family {
+                offset: f.offset,
+                rest_length: round(f.rest_length),
+                stiffness: round(f.stiffness),
+                damping: round(f.damping),
+            })
+            .collect();
+        let low_masses: Vec<f32> = dynamics.masses.iter().map(|&m| round(m)).collect();
+        let multigrid = Multigrid::new(nx, ny, low_families, &low_masses, pinned.clone())?;
+        let system = (TypeId::of::<T>() != TypeId::of::<f32>())
+            .then(|| GridOperator::new(nx, ny, &families, pinned.clone()));
+        if multigrid.fine().is_parallel() {
             // Starts the thread pool now rather than inside a step.
             rayon::current_num_threads();
         }
         Some(Self {
+            system,
+            families,
+            base_mass: dynamics.masses.clone(),
+            mass: dynamics.masses.clone(),
             multigrid,
             pinned,
             rhs: zero_field(n),
@@ -105,7 +140,7 @@ impl<T: Real> GridSolver<T> {
         tolerance: T,
         max_iterations: usize,
     ) -> SolveOutcome<T> {
-        if self.multigrid.system().is_parallel() {
+        if self.multigrid.fine().is_parallel() {
             // The whole solve runs on one worker of the pool, so that the parallel products in
             // it share work through the workers' own queues: each entry into the pool from
             // outside goes through its shared queue, which allocates a block every 63 entries.
@@ -127,7 +162,18 @@ impl<T: Real> GridSolver<T> {
                 *r = f * h;
             }
         }
-        self.multigrid.assemble(input.positions, input.velocities, &mut self.rhs, h, input.drag);
+        let scale = T::ONE + h * input.drag;
+        for (m, &base) in self.mass.iter_mut().zip(&self.base_mass) {
+            *m = base * scale;
+        }
+        let rhs = RightHandSide { velocities: input.velocities, rhs: &mut self.rhs };
+        let system = match &mut self.system {
+            Some(system) => system,
+            None => shared(self.multigrid.fine_mut()),
+        };
+        system.assemble(input.positions, &self.mass, &self.families, T::ONE, h, Some(rhs));
+        let round = |value: T| value.to_f64() as f32;
+        self.multigrid.assemble(self.system.as_ref(), input.positions, round(h), round(input.drag));
         zero_pinned(&mut self.rhs, &self.pinned);
         zero_pinned(&mut self.delta_v, &self.pinned);
         self.conjugate_gradients(tolerance, max_iterations)
@@ -147,7 +193,7 @@ impl<T: Real> GridSolver<T> {
             return SolveOutcome { iterations: 0, relative_residual: T::ZERO };
         }
         // r = b - A x0 from the previous step's solution.
-        self.multigrid.system().residual(&self.rhs, &self.delta_v, &mut self.residual);
+        system(&self.system, &self.multigrid).residual(&self.rhs, &self.delta_v, &mut self.residual);
         let target = tolerance.to_f64() * rhs_norm;
         let mut residual_norm = dot_fields(&self.residual, &self.residual).sqrt();
         let mut iterations = 0;
@@ -168,7 +214,7 @@ impl<T: Real> GridSolver<T> {
                 }
             }
             rz = rz_next;
-            self.multigrid.system().apply(&self.search, &mut self.product);
+            system(&self.system, &self.multigrid).apply(&self.search, &mut self.product);
             let curvature = dot_fields(&self.search, &self.product);
             if curvature <= 0.0 || !curvature.is_finite() {
                 break;
@@ -189,6 +235,22 @@ impl<T: Real> GridSolver<T> {
         }
         SolveOutcome { iterations, relative_residual: T::from_f64(residual_norm / rhs_norm) }
     }
+}
+
+/// The step's system: its own operator, or the multigrid's fine level when `T` is `f32`.
+fn system<'a, T: Real>(
+    own: &'a Option<GridOperator<T>>,
+    multigrid: &'a Multigrid<f32>,
+) -> &'a GridOperator<T> {
+    match own {
+        Some(system) => system,
+        None => (multigrid.fine() as &dyn Any).downcast_ref().expect("the system is the fine level"),
+    }
+}
+
+/// The multigrid's fine level as the step's system, when `T` is `f32`.
+fn shared<T: Real>(fine: &mut GridOperator<f32>) -> &mut GridOperator<T> {
+    (fine as &mut dyn Any).downcast_mut().expect("the system is the fine level")
 }
 
 fn zero_pinned<T: Real>(field: &mut Field<T>, pinned: &[usize]) {
