@@ -16,11 +16,13 @@
 
 use std::any::{Any, TypeId};
 
+use rayon::prelude::*;
+
 use super::super::super::Real;
 use super::super::super::dynamics::Dynamics;
 use super::grid_operator::{Family, Field, GridOperator, RightHandSide, zero_field};
 use super::multigrid::Multigrid;
-use super::{SolveOutcome, StepInput, dot_fields, dot_slices};
+use super::{SolveOutcome, StepInput, dot_slices};
 
 #[derive(Debug)]
 pub(crate) struct GridSolver<T> {
@@ -43,6 +45,8 @@ pub(crate) struct GridSolver<T> {
     search: Field<T>,
     preconditioned: Field<T>,
     product: Field<T>,
+    /// The sums of the pieces of a dot product, three axes of `⌈n / PIECE⌉`.
+    pieces: Vec<f64>,
 }
 
 impl<T: Real> GridSolver<T> {
@@ -124,6 +128,7 @@ impl<T: Real> GridSolver<T> {
             search: zero_field(n),
             preconditioned: zero_field(n),
             product: zero_field(n),
+            pieces: vec![0.0; 3 * n.div_ceil(PIECE)],
         })
     }
 
@@ -185,7 +190,9 @@ impl<T: Real> GridSolver<T> {
     }
 
     fn conjugate_gradients(&mut self, tolerance: T, max_iterations: usize) -> SolveOutcome<T> {
-        let rhs_norm = dot_fields(&self.rhs, &self.rhs).sqrt();
+        let parallel = self.multigrid.fine().is_parallel();
+        let pieces = &mut self.pieces;
+        let rhs_norm = dot_pieces(&self.rhs, &self.rhs, pieces, parallel).sqrt();
         if rhs_norm == 0.0 {
             for axis in &mut self.delta_v {
                 axis.fill(T::ZERO);
@@ -195,46 +202,90 @@ impl<T: Real> GridSolver<T> {
         // r = b - A x0 from the previous step's solution.
         system(&self.system, &self.multigrid).residual(&self.rhs, &self.delta_v, &mut self.residual);
         let target = tolerance.to_f64() * rhs_norm;
-        let mut residual_norm = dot_fields(&self.residual, &self.residual).sqrt();
+        let mut residual_norm = dot_pieces(&self.residual, &self.residual, pieces, parallel).sqrt();
         let mut iterations = 0;
         let mut rz = 0.0;
         while residual_norm > target && iterations < max_iterations {
             self.multigrid.precondition(&mut self.residual, &mut self.preconditioned);
-            let rz_next = dot_fields(&self.residual, &self.preconditioned);
-            if iterations == 0 {
-                for (s, z) in self.search.iter_mut().zip(&self.preconditioned) {
-                    s.copy_from_slice(z);
-                }
-            } else {
-                let beta = T::from_f64(rz_next / rz);
-                for (s, z) in self.search.iter_mut().zip(&self.preconditioned) {
+            let rz_next = dot_pieces(&self.residual, &self.preconditioned, pieces, parallel);
+            // s = z on the first iteration, z + β s after.
+            let beta = if iterations == 0 { T::ZERO } else { T::from_f64(rz_next / rz) };
+            for (s, z) in self.search.iter_mut().zip(&self.preconditioned) {
+                let update = |(s, z): (&mut [T], &[T])| {
                     for (s, &z) in s.iter_mut().zip(z) {
-                        *s = z + *s * beta;
+                        *s = if iterations == 0 { z } else { z + *s * beta };
                     }
+                };
+                if parallel {
+                    s.par_chunks_mut(PIECE).zip(z.par_chunks(PIECE)).for_each(update);
+                } else {
+                    update((s, z));
                 }
             }
             rz = rz_next;
             system(&self.system, &self.multigrid).apply(&self.search, &mut self.product);
-            let curvature = dot_fields(&self.search, &self.product);
+            let curvature = dot_pieces(&self.search, &self.product, pieces, parallel);
             if curvature <= 0.0 || !curvature.is_finite() {
                 break;
             }
             let alpha = T::from_f64(rz / curvature);
-            let mut squared = 0.0;
-            for a in 0..3 {
+            // x += α s and r -= α q, with |r|² summed piece by piece as `dot_pieces` does.
+            let per_axis = pieces.len() / 3;
+            let axes = pieces.chunks_mut(per_axis);
+            for (a, sums) in axes.enumerate() {
                 let (dv, r) = (&mut self.delta_v[a], &mut self.residual[a]);
                 let (s, q) = (&self.search[a], &self.product[a]);
-                for p in 0..dv.len() {
-                    dv[p] += s[p] * alpha;
-                    r[p] -= q[p] * alpha;
+                let update = |((((dv, r), s), q), sum): UpdatePiece<'_, T>| {
+                    for p in 0..dv.len() {
+                        dv[p] += s[p] * alpha;
+                        r[p] -= q[p] * alpha;
+                    }
+                    *sum = dot_slices(r, r);
+                };
+                if parallel {
+                    dv.par_chunks_mut(PIECE)
+                        .zip(r.par_chunks_mut(PIECE))
+                        .zip(s.par_chunks(PIECE))
+                        .zip(q.par_chunks(PIECE))
+                        .zip(sums.par_iter_mut())
+                        .for_each(update);
+                } else {
+                    dv.chunks_mut(PIECE)
+                        .zip(r.chunks_mut(PIECE))
+                        .zip(s.chunks(PIECE))
+                        .zip(q.chunks(PIECE))
+                        .zip(sums.iter_mut())
+                        .for_each(update);
                 }
-                squared += dot_slices(r, r);
             }
-            residual_norm = squared.sqrt();
+            residual_norm = pieces.iter().sum::<f64>().sqrt();
             iterations += 1;
         }
         SolveOutcome { iterations, relative_residual: T::from_f64(residual_norm / rhs_norm) }
     }
+}
+
+/// One piece of CG's update: `Δv` and `r` to update from `s` and `A s`, and the sum of `r·r`.
+type UpdatePiece<'a, T> = ((((&'a mut [T], &'a mut [T]), &'a [T]), &'a [T]), &'a mut f64);
+
+/// Fields are summed in pieces of this many entries per axis, each piece's sum in `f64` by
+/// [`dot_slices`], the pieces' sums then added in order: the pieces do not depend on the number
+/// of threads, so neither do the bits.
+const PIECE: usize = 4096;
+
+/// `Σ a·b` over the three axes, by pieces (see [`PIECE`]), on the pool's threads when
+/// `parallel`; `pieces` holds the pieces' sums.
+fn dot_pieces<T: Real>(a: &Field<T>, b: &Field<T>, pieces: &mut [f64], parallel: bool) -> f64 {
+    let per_axis = pieces.len() / 3;
+    for ((a, b), sums) in a.iter().zip(b).zip(pieces.chunks_mut(per_axis)) {
+        let piece = |((a, b), sum): ((&[T], &[T]), &mut f64)| *sum = dot_slices(a, b);
+        if parallel {
+            a.par_chunks(PIECE).zip(b.par_chunks(PIECE)).zip(sums.par_iter_mut()).for_each(piece);
+        } else {
+            a.chunks(PIECE).zip(b.chunks(PIECE)).zip(sums.iter_mut()).for_each(piece);
+        }
+    }
+    pieces.iter().sum()
 }
 
 /// The step's system: its own operator, or the multigrid's fine level when `T` is `f32`.
