@@ -176,14 +176,51 @@ impl<T: Real> GridOperator<T> {
             }
         }
         self.decouple_pinned(mass);
-        let omega = T::from_f64(JACOBI_DAMPING);
-        for p in 0..self.len() {
-            let block = Sym3::from_entries(self.diagonal.each_ref().map(|a| a[p]));
-            let entries = (block.inverse() * omega).entries();
-            for (s, e) in self.smoother.iter_mut().zip(entries) {
-                s[p] = e;
+        self.update_smoother();
+    }
+
+    /// This operator as a copy of `source` (the same grid and families) rounded to `T`, with its
+    /// own smoother: the preconditioner's copy of the step's system.
+    pub fn copy_from<S: Real>(&mut self, source: &GridOperator<S>) {
+        let pairs =
+            self.diagonal.iter_mut().zip(&source.diagonal).chain(
+                self.couplings.iter_mut().zip(&source.couplings).flat_map(|(a, b)| a.iter_mut().zip(b)),
+            );
+        for (to, from) in pairs {
+            for (t, &f) in to.iter_mut().zip(from) {
+                *t = T::from_f64(f.to_f64());
             }
         }
+        self.update_smoother();
+    }
+
+    /// `ω D⁻¹` from the diagonal blocks.
+    fn update_smoother(&mut self) {
+        let omega = T::from_f64(JACOBI_DAMPING);
+        let diagonal = &self.diagonal;
+        let invert = |(k, mut s): (usize, [&mut [T]; 6]), piece: usize| {
+            for m in 0..s[0].len() {
+                let p = k * piece + m;
+                let block = Sym3::from_entries(diagonal.each_ref().map(|a| a[p]));
+                for (s, e) in s.iter_mut().zip((block.inverse() * omega).entries()) {
+                    s[m] = e;
+                }
+            }
+        };
+        let [s0, s1, s2, s3, s4, s5] = &mut self.smoother;
+        if self.nx * self.ny < PARALLEL_PARTICLES {
+            invert((0, [s0, s1, s2, s3, s4, s5].map(|s| s.as_mut_slice())), 0);
+            return;
+        }
+        let piece = self.nx * 16;
+        s0.par_chunks_mut(piece)
+            .zip(s1.par_chunks_mut(piece))
+            .zip(s2.par_chunks_mut(piece))
+            .zip(s3.par_chunks_mut(piece))
+            .zip(s4.par_chunks_mut(piece))
+            .zip(s5.par_chunks_mut(piece))
+            .enumerate()
+            .for_each(|(k, (((((s0, s1), s2), s3), s4), s5))| invert((k, [s0, s1, s2, s3, s4, s5]), piece));
     }
 
     /// Zeroes the couplings of pinned particles and sets their diagonal to their mass, so that
@@ -297,23 +334,35 @@ impl<T: Real> GridOperator<T> {
 
     /// `x = ω D⁻¹ b`: one smoothing sweep from a zero guess.
     pub fn smooth_from_zero(&self, b: &Field<T>, x: &mut Field<T>) {
-        let [x0, x1, x2] = x;
-        block_products::<T, false>(
-            [x0, x1, x2],
-            self.smoother.each_ref().map(|a| a.as_slice()),
-            b.each_ref().map(|a| a.as_slice()),
-        );
+        self.smoother_products::<false>(b, x);
     }
 
     /// `x += ω D⁻¹ (b - A x)`: one damped block-Jacobi sweep, with `r` as scratch.
     pub fn smooth(&self, b: &Field<T>, x: &mut Field<T>, r: &mut Field<T>) {
         self.residual(b, x, r);
+        self.smoother_products::<true>(r, x);
+    }
+
+    /// `x = ω D⁻¹ r`, or `x += ω D⁻¹ r` with `ADD`; in pieces on the pool's threads on a large
+    /// grid (each entry is computed alone, so the pieces change no bits).
+    fn smoother_products<const ADD: bool>(&self, r: &Field<T>, x: &mut Field<T>) {
         let [x0, x1, x2] = x;
-        block_products::<T, true>(
-            [x0, x1, x2],
-            self.smoother.each_ref().map(|a| a.as_slice()),
-            r.each_ref().map(|a| a.as_slice()),
-        );
+        if !self.is_parallel() {
+            let (smoother, r) =
+                (self.smoother.each_ref().map(|a| a.as_slice()), r.each_ref().map(|a| a.as_slice()));
+            block_products::<T, ADD>([x0, x1, x2], smoother, r);
+            return;
+        }
+        let piece = self.nx * 16;
+        x0.par_chunks_mut(piece)
+            .zip(x1.par_chunks_mut(piece))
+            .zip(x2.par_chunks_mut(piece))
+            .enumerate()
+            .for_each(|(k, ((x0, x1), x2))| {
+                let at = k * piece..k * piece + x0.len();
+                let smoother = self.smoother.each_ref().map(|a| &a[at.clone()]);
+                block_products::<T, ADD>([x0, x1, x2], smoother, r.each_ref().map(|a| &a[at.clone()]));
+            });
     }
 
     /// The block `A[p, q]` for `q` equal to `p` or one stencil offset away (zero otherwise).

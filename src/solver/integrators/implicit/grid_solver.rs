@@ -7,16 +7,36 @@
 //! products. Block Jacobi's iteration count grows with the stiffness ratio `h² k / m` and with
 //! the resolution; one V-cycle removes the error at every wavelength, so the count stays small
 //! and nearly independent of both.
+//!
+//! The V-cycle is always in `f32`. An `f64` run keeps its own `f64` system, on which conjugate
+//! gradients computes its products and residuals, and hands the cycle a rounded copy: most of a
+//! solve's memory traffic is in the cycle's products, and a preconditioner only has to be about
+//! right, so the `f64` solve still reaches its tolerance on its own residual in about the same
+//! number of iterations. An `f32` run assembles its system straight into the cycle's fine level.
+
+use std::any::{Any, TypeId};
+
+use rayon::prelude::*;
 
 use super::super::super::Real;
 use super::super::super::dynamics::Dynamics;
-use super::grid_operator::{Family, Field, zero_field};
+use super::grid_operator::{Family, Field, GridOperator, RightHandSide, zero_field};
 use super::multigrid::Multigrid;
-use super::{SolveOutcome, StepInput, dot_fields, dot_slices};
+use super::{SolveOutcome, StepInput, dot_slices};
 
 #[derive(Debug)]
 pub(crate) struct GridSolver<T> {
-    multigrid: Multigrid<T>,
+    /// The step's system, unless `T` is the preconditioner's precision: then the system is the
+    /// multigrid's fine level.
+    system: Option<GridOperator<T>>,
+    families: Vec<Family<T>>,
+    base_mass: Vec<T>,
+    /// `base_mass (1 + h drag)` for the current step.
+    mass: Vec<T>,
+    /// The preconditioner, in `f32` whatever `T`: a V-cycle only needs to be roughly right, and
+    /// in `f32` it streams half the bytes of an `f64` one. The residual and the products that
+    /// conjugate gradients converges on stay in `T`.
+    multigrid: Multigrid<f32>,
     pinned: Vec<usize>,
     rhs: Field<T>,
     /// The solution `Δv`, kept as the next step's starting guess.
@@ -25,6 +45,8 @@ pub(crate) struct GridSolver<T> {
     search: Field<T>,
     preconditioned: Field<T>,
     product: Field<T>,
+    /// The sums of the pieces of a dot product, three axes of `⌈n / PIECE⌉`.
+    pieces: Vec<f64>,
 }
 
 impl<T: Real> GridSolver<T> {
@@ -75,12 +97,29 @@ impl<T: Real> GridSolver<T> {
             return None;
         }
         let pinned: Vec<usize> = (0..n).filter(|&p| dynamics.inverse_masses[p] == T::ZERO).collect();
-        let multigrid = Multigrid::new(nx, ny, families, &dynamics.masses, pinned.clone())?;
-        if multigrid.system().is_parallel() {
+        let round = |value: T| value.to_f64() as f32;
+        let low_families = families
+            .iter()
+            .map(|f| Family {
+                offset: f.offset,
+                rest_length: round(f.rest_length),
+                stiffness: round(f.stiffness),
+                damping: round(f.damping),
+            })
+            .collect();
+        let low_masses: Vec<f32> = dynamics.masses.iter().map(|&m| round(m)).collect();
+        let multigrid = Multigrid::new(nx, ny, low_families, &low_masses, pinned.clone())?;
+        let system = (TypeId::of::<T>() != TypeId::of::<f32>())
+            .then(|| GridOperator::new(nx, ny, &families, pinned.clone()));
+        if multigrid.fine().is_parallel() {
             // Starts the thread pool now rather than inside a step.
             rayon::current_num_threads();
         }
         Some(Self {
+            system,
+            families,
+            base_mass: dynamics.masses.clone(),
+            mass: dynamics.masses.clone(),
             multigrid,
             pinned,
             rhs: zero_field(n),
@@ -89,6 +128,7 @@ impl<T: Real> GridSolver<T> {
             search: zero_field(n),
             preconditioned: zero_field(n),
             product: zero_field(n),
+            pieces: vec![0.0; 3 * n.div_ceil(PIECE)],
         })
     }
 
@@ -105,7 +145,7 @@ impl<T: Real> GridSolver<T> {
         tolerance: T,
         max_iterations: usize,
     ) -> SolveOutcome<T> {
-        if self.multigrid.system().is_parallel() {
+        if self.multigrid.fine().is_parallel() {
             // The whole solve runs on one worker of the pool, so that the parallel products in
             // it share work through the workers' own queues: each entry into the pool from
             // outside goes through its shared queue, which allocates a block every 63 entries.
@@ -127,7 +167,18 @@ impl<T: Real> GridSolver<T> {
                 *r = f * h;
             }
         }
-        self.multigrid.assemble(input.positions, input.velocities, &mut self.rhs, h, input.drag);
+        let scale = T::ONE + h * input.drag;
+        for (m, &base) in self.mass.iter_mut().zip(&self.base_mass) {
+            *m = base * scale;
+        }
+        let rhs = RightHandSide { velocities: input.velocities, rhs: &mut self.rhs };
+        let system = match &mut self.system {
+            Some(system) => system,
+            None => shared(self.multigrid.fine_mut()),
+        };
+        system.assemble(input.positions, &self.mass, &self.families, T::ONE, h, Some(rhs));
+        let round = |value: T| value.to_f64() as f32;
+        self.multigrid.assemble(self.system.as_ref(), input.positions, round(h), round(input.drag));
         zero_pinned(&mut self.rhs, &self.pinned);
         zero_pinned(&mut self.delta_v, &self.pinned);
         self.conjugate_gradients(tolerance, max_iterations)
@@ -139,7 +190,9 @@ impl<T: Real> GridSolver<T> {
     }
 
     fn conjugate_gradients(&mut self, tolerance: T, max_iterations: usize) -> SolveOutcome<T> {
-        let rhs_norm = dot_fields(&self.rhs, &self.rhs).sqrt();
+        let parallel = self.multigrid.fine().is_parallel();
+        let pieces = &mut self.pieces;
+        let rhs_norm = dot_pieces(&self.rhs, &self.rhs, pieces, parallel).sqrt();
         if rhs_norm == 0.0 {
             for axis in &mut self.delta_v {
                 axis.fill(T::ZERO);
@@ -147,48 +200,108 @@ impl<T: Real> GridSolver<T> {
             return SolveOutcome { iterations: 0, relative_residual: T::ZERO };
         }
         // r = b - A x0 from the previous step's solution.
-        self.multigrid.system().residual(&self.rhs, &self.delta_v, &mut self.residual);
+        system(&self.system, &self.multigrid).residual(&self.rhs, &self.delta_v, &mut self.residual);
         let target = tolerance.to_f64() * rhs_norm;
-        let mut residual_norm = dot_fields(&self.residual, &self.residual).sqrt();
+        let mut residual_norm = dot_pieces(&self.residual, &self.residual, pieces, parallel).sqrt();
         let mut iterations = 0;
         let mut rz = 0.0;
         while residual_norm > target && iterations < max_iterations {
             self.multigrid.precondition(&mut self.residual, &mut self.preconditioned);
-            let rz_next = dot_fields(&self.residual, &self.preconditioned);
-            if iterations == 0 {
-                for (s, z) in self.search.iter_mut().zip(&self.preconditioned) {
-                    s.copy_from_slice(z);
-                }
-            } else {
-                let beta = T::from_f64(rz_next / rz);
-                for (s, z) in self.search.iter_mut().zip(&self.preconditioned) {
+            let rz_next = dot_pieces(&self.residual, &self.preconditioned, pieces, parallel);
+            // s = z on the first iteration, z + β s after.
+            let beta = if iterations == 0 { T::ZERO } else { T::from_f64(rz_next / rz) };
+            for (s, z) in self.search.iter_mut().zip(&self.preconditioned) {
+                let update = |(s, z): (&mut [T], &[T])| {
                     for (s, &z) in s.iter_mut().zip(z) {
-                        *s = z + *s * beta;
+                        *s = if iterations == 0 { z } else { z + *s * beta };
                     }
+                };
+                if parallel {
+                    s.par_chunks_mut(PIECE).zip(z.par_chunks(PIECE)).for_each(update);
+                } else {
+                    update((s, z));
                 }
             }
             rz = rz_next;
-            self.multigrid.system().apply(&self.search, &mut self.product);
-            let curvature = dot_fields(&self.search, &self.product);
+            system(&self.system, &self.multigrid).apply(&self.search, &mut self.product);
+            let curvature = dot_pieces(&self.search, &self.product, pieces, parallel);
             if curvature <= 0.0 || !curvature.is_finite() {
                 break;
             }
             let alpha = T::from_f64(rz / curvature);
-            let mut squared = 0.0;
-            for a in 0..3 {
+            // x += α s and r -= α q, with |r|² summed piece by piece as `dot_pieces` does.
+            let per_axis = pieces.len() / 3;
+            let axes = pieces.chunks_mut(per_axis);
+            for (a, sums) in axes.enumerate() {
                 let (dv, r) = (&mut self.delta_v[a], &mut self.residual[a]);
                 let (s, q) = (&self.search[a], &self.product[a]);
-                for p in 0..dv.len() {
-                    dv[p] += s[p] * alpha;
-                    r[p] -= q[p] * alpha;
+                let update = |((((dv, r), s), q), sum): UpdatePiece<'_, T>| {
+                    for p in 0..dv.len() {
+                        dv[p] += s[p] * alpha;
+                        r[p] -= q[p] * alpha;
+                    }
+                    *sum = dot_slices(r, r);
+                };
+                if parallel {
+                    dv.par_chunks_mut(PIECE)
+                        .zip(r.par_chunks_mut(PIECE))
+                        .zip(s.par_chunks(PIECE))
+                        .zip(q.par_chunks(PIECE))
+                        .zip(sums.par_iter_mut())
+                        .for_each(update);
+                } else {
+                    dv.chunks_mut(PIECE)
+                        .zip(r.chunks_mut(PIECE))
+                        .zip(s.chunks(PIECE))
+                        .zip(q.chunks(PIECE))
+                        .zip(sums.iter_mut())
+                        .for_each(update);
                 }
-                squared += dot_slices(r, r);
             }
-            residual_norm = squared.sqrt();
+            residual_norm = pieces.iter().sum::<f64>().sqrt();
             iterations += 1;
         }
         SolveOutcome { iterations, relative_residual: T::from_f64(residual_norm / rhs_norm) }
     }
+}
+
+/// One piece of CG's update: `Δv` and `r` to update from `s` and `A s`, and the sum of `r·r`.
+type UpdatePiece<'a, T> = ((((&'a mut [T], &'a mut [T]), &'a [T]), &'a [T]), &'a mut f64);
+
+/// Fields are summed in pieces of this many entries per axis, each piece's sum in `f64` by
+/// [`dot_slices`], the pieces' sums then added in order: the pieces do not depend on the number
+/// of threads, so neither do the bits.
+const PIECE: usize = 4096;
+
+/// `Σ a·b` over the three axes, by pieces (see [`PIECE`]), on the pool's threads when
+/// `parallel`; `pieces` holds the pieces' sums.
+fn dot_pieces<T: Real>(a: &Field<T>, b: &Field<T>, pieces: &mut [f64], parallel: bool) -> f64 {
+    let per_axis = pieces.len() / 3;
+    for ((a, b), sums) in a.iter().zip(b).zip(pieces.chunks_mut(per_axis)) {
+        let piece = |((a, b), sum): ((&[T], &[T]), &mut f64)| *sum = dot_slices(a, b);
+        if parallel {
+            a.par_chunks(PIECE).zip(b.par_chunks(PIECE)).zip(sums.par_iter_mut()).for_each(piece);
+        } else {
+            a.chunks(PIECE).zip(b.chunks(PIECE)).zip(sums.iter_mut()).for_each(piece);
+        }
+    }
+    pieces.iter().sum()
+}
+
+/// The step's system: its own operator, or the multigrid's fine level when `T` is `f32`.
+fn system<'a, T: Real>(
+    own: &'a Option<GridOperator<T>>,
+    multigrid: &'a Multigrid<f32>,
+) -> &'a GridOperator<T> {
+    match own {
+        Some(system) => system,
+        None => (multigrid.fine() as &dyn Any).downcast_ref().expect("the system is the fine level"),
+    }
+}
+
+/// The multigrid's fine level as the step's system, when `T` is `f32`.
+fn shared<T: Real>(fine: &mut GridOperator<f32>) -> &mut GridOperator<T> {
+    (fine as &mut dyn Any).downcast_mut().expect("the system is the fine level")
 }
 
 fn zero_pinned<T: Real>(field: &mut Field<T>, pinned: &[usize]) {

@@ -184,11 +184,6 @@ fn record<T: Real>(stats: &mut LinearSolveStats, tolerance: T, outcome: SolveOut
     }
 }
 
-/// `Σ a·b` over the three axes, accumulated in `f64` so that `f32` runs keep a usable residual.
-pub(crate) fn dot_fields<T: Real>(a: &Field<T>, b: &Field<T>) -> f64 {
-    a.iter().zip(b).map(|(a, b)| dot_slices(a, b)).sum()
-}
-
 /// `Σ a·b` of two arrays in `f64`, in eight interleaved partial sums (so that the loop
 /// vectorises) added in a fixed order: the same inputs always give the same bits.
 pub(crate) fn dot_slices<T: Real>(a: &[T], b: &[T]) -> f64 {

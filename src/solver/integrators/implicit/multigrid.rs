@@ -1,6 +1,7 @@
 //! A geometric multigrid V-cycle on a grid cloth, used as the conjugate-gradient preconditioner.
 //!
-//! Level 0 is the step's system on the cloth's grid. Each coarser level keeps every other
+//! Level 0 is the step's system on the cloth's grid, or its copy in the hierarchy's precision
+//! (an `f64` step is preconditioned in `f32`). Each coarser level keeps every other
 //! particle in both directions (`⌈n/2⌉`; on an even grid the last fine column and row are
 //! extrapolated from the last coarse one) and is the same cloth rediscretised there: the same
 //! spring families between the coarse particles at their current positions, with doubled rest
@@ -16,7 +17,9 @@
 //! cycle is a symmetric positive definite operator, as conjugate gradients needs.
 
 use super::super::super::Real;
-use super::grid_operator::{Family, Field, GridOperator, RightHandSide, zero_field};
+use std::any::Any;
+
+use super::grid_operator::{Family, Field, GridOperator, zero_field};
 
 /// The coarsest level has at most this many particles and is solved directly.
 pub(crate) const COARSEST_PARTICLES: usize = 16;
@@ -79,72 +82,80 @@ impl<T: Real> Multigrid<T> {
         Some(Self { levels, families, coarsest })
     }
 
-    /// Assembles every level for a step of `h` at `positions`, and the fine right-hand side's
-    /// spring terms into `rhs`.
-    pub fn assemble(
+    /// Assembles every level for a step of `h` at `positions`. The fine level is a copy of the
+    /// step's `system` (assembled at `positions`) in this hierarchy's precision, or, without
+    /// `system`, the step's system itself, already assembled through
+    /// [`fine_mut`](Self::fine_mut).
+    pub fn assemble<S: Real>(
         &mut self,
-        positions: &Field<T>,
-        velocities: &Field<T>,
-        rhs: &mut Field<T>,
+        system: Option<&GridOperator<S>>,
+        positions: &Field<S>,
         h: T,
         drag: T,
     ) {
         let scale = T::ONE + h * drag;
         let mut rest_scale = T::ONE;
-        for l in 0..self.levels.len() {
+        if let Some(system) = system {
+            self.levels[0].operator.copy_from(system);
+        }
+        for l in 1..self.levels.len() {
+            rest_scale = rest_scale + rest_scale;
             let (finer, rest) = self.levels.split_at_mut(l);
-            let level = &mut rest[0];
+            let (fine, level) = (&finer[l - 1], &mut rest[0]);
             for (m, &base) in level.mass.iter_mut().zip(&level.base_mass) {
                 *m = base * scale;
             }
-            match finer.last() {
-                None => level.operator.assemble(
-                    positions,
-                    &level.mass,
-                    &self.families,
-                    rest_scale,
-                    h,
-                    Some(RightHandSide { velocities, rhs }),
-                ),
-                Some(fine) => {
-                    let source = if l == 1 { positions } else { &fine.positions };
-                    inject(
-                        source,
-                        fine.operator.nx,
-                        &mut level.positions,
-                        level.operator.nx,
-                        level.operator.ny,
-                    );
-                    level.operator.assemble(
-                        &level.positions,
-                        &level.mass,
-                        &self.families,
-                        rest_scale,
-                        h,
-                        None,
-                    );
-                }
+            let (nx, cx, cy) = (fine.operator.nx, level.operator.nx, level.operator.ny);
+            if l == 1 {
+                inject(positions, nx, &mut level.positions, cx, cy);
+            } else {
+                inject(&fine.positions, nx, &mut level.positions, cx, cy);
             }
-            rest_scale = rest_scale + rest_scale;
+            level.operator.assemble(&level.positions, &level.mass, &self.families, rest_scale, h, None);
         }
         let last = self.levels.last().expect("a hierarchy has a level");
         self.coarsest.factor(&last.operator);
     }
 
-    /// The fine level's operator: the step's system.
-    pub fn system(&self) -> &GridOperator<T> {
+    /// The fine level's operator.
+    pub fn fine(&self) -> &GridOperator<T> {
         &self.levels[0].operator
     }
 
+    /// The fine level's operator, to assemble the step's system in place when it has this
+    /// hierarchy's precision.
+    pub fn fine_mut(&mut self) -> &mut GridOperator<T> {
+        &mut self.levels[0].operator
+    }
+
     /// `z = B r`, one V-cycle from a zero guess; `r` and `z` are fine-level fields, zero (and
-    /// kept zero) on pinned particles.
-    pub fn precondition(&mut self, r: &mut Field<T>, z: &mut Field<T>) {
-        // Swapping the vectors in is free; the cycle works on the levels' own fields.
-        std::mem::swap(r, &mut self.levels[0].rhs);
-        std::mem::swap(z, &mut self.levels[0].solution);
+    /// kept zero) on pinned particles. Fields of another precision are rounded on the way in and
+    /// out.
+    pub fn precondition<S: Real>(&mut self, r: &mut Field<S>, z: &mut Field<S>) {
+        let fine = &mut self.levels[0];
+        let same = (r as &mut dyn Any).downcast_mut::<Field<T>>();
+        if let Some(r) = same {
+            // Swapping the vectors in is free; the cycle works on the levels' own fields.
+            std::mem::swap(r, &mut fine.rhs);
+            let z = (z as &mut dyn Any).downcast_mut::<Field<T>>().expect("r and z share a type");
+            std::mem::swap(z, &mut fine.solution);
+            self.cycle();
+            let fine = &mut self.levels[0];
+            std::mem::swap(r, &mut fine.rhs);
+            std::mem::swap(z, &mut fine.solution);
+            return;
+        }
+        for (to, from) in fine.rhs.iter_mut().zip(r.iter()) {
+            for (t, &f) in to.iter_mut().zip(from) {
+                *t = T::from_f64(f.to_f64());
+            }
+        }
         self.cycle();
-        std::mem::swap(r, &mut self.levels[0].rhs);
-        std::mem::swap(z, &mut self.levels[0].solution);
+        for (to, from) in z.iter_mut().zip(&self.levels[0].solution) {
+            for (t, &f) in to.iter_mut().zip(from) {
+                *t = S::from_f64(f.to_f64());
+            }
+        }
     }
 
     fn cycle(&mut self) {
@@ -311,12 +322,12 @@ fn prolong_add<T: Real>(
 }
 
 /// Coarse positions: every other fine particle in both directions.
-fn inject<T: Real>(fine: &Field<T>, nx: usize, coarse: &mut Field<T>, cx: usize, cy: usize) {
+fn inject<S: Real, T: Real>(fine: &Field<S>, nx: usize, coarse: &mut Field<T>, cx: usize, cy: usize) {
     for (f, c) in fine.iter().zip(coarse.iter_mut()) {
         for j in 0..cy {
             let source = &f[2 * j * nx..];
             for (i, value) in c[j * cx..(j + 1) * cx].iter_mut().enumerate() {
-                *value = source[2 * i];
+                *value = T::from_f64(source[2 * i].to_f64());
             }
         }
     }
@@ -471,16 +482,18 @@ mod tests {
             family([0, 2]),
         ];
         let masses = vec![1.0 / (n * n) as f64; n * n];
-        let mut multigrid = Multigrid::new(n, n, families, &masses, vec![0, n - 1]).unwrap();
+        let mut multigrid = Multigrid::new(n, n, families.clone(), &masses, vec![0, n - 1]).unwrap();
         let mut positions = zero_field(n * n);
         let [px, py, pz] = &mut positions;
         for (p, ((x, y), z)) in px.iter_mut().zip(py.iter_mut()).zip(pz.iter_mut()).enumerate() {
             let (i, j) = ((p % n) as f64, (p / n) as f64);
             (*x, *y, *z) = (i * spacing * 1.01, 0.02 * (0.4 * i).sin() * (0.3 * j).cos(), j * spacing * 0.99);
         }
-        let velocities = zero_field(n * n);
-        let mut rhs = zero_field(n * n);
-        multigrid.assemble(&positions, &velocities, &mut rhs, 1.0 / 600.0, 4.0);
+        let (h, drag) = (1.0 / 600.0, 4.0);
+        let mass: Vec<f64> = masses.iter().map(|m| m * (1.0 + h * drag)).collect();
+        let mut system = GridOperator::new(n, n, &families, vec![0, n - 1]);
+        system.assemble(&positions, &mass, &families, 1.0, h, None);
+        multigrid.assemble(Some(&system), &positions, h, drag);
         let vector = |seed: f64| {
             let mut field: Field<f64> = std::array::from_fn(|a| wiggle(n * n, seed + a as f64));
             for axis in &mut field {
@@ -511,13 +524,13 @@ mod tests {
         let (mut multigrid, x, _) = bent_cloth();
         // b = A x, then x ≈ B b: a good preconditioner leaves a small error in the energy norm.
         let mut b = zero_field(400);
-        multigrid.system().apply(&x, &mut b);
+        multigrid.fine().apply(&x, &mut b);
         let mut approximate = zero_field(400);
         multigrid.precondition(&mut b, &mut approximate);
         let error: Field<f64> =
             std::array::from_fn(|a| x[a].iter().zip(&approximate[a]).map(|(u, v)| u - v).collect());
         let mut a_error = zero_field(400);
-        multigrid.system().apply(&error, &mut a_error);
+        multigrid.fine().apply(&error, &mut a_error);
         let reduction = (dot(&error, &a_error) / dot(&x, &b)).sqrt();
         assert!(reduction < 0.5, "the V-cycle leaves {reduction} of the error");
     }

@@ -142,3 +142,22 @@ fn multigrid_and_block_jacobi_agree_on_the_step() {
         assert_eq!(a.velocities.get(corner), Vec3::ZERO);
     }
 }
+
+/// The V-cycle runs in `f32` for an `f64` solve, which still converges on its `f64` residual to
+/// far below `f32`'s precision, at about the rate of the first digits.
+#[test]
+fn an_f64_solve_preconditioned_in_f32_reaches_a_tolerance_far_below_f32s_precision() {
+    let (model, drag) = peers_cloth(64);
+    let (mut state, mut dynamics) = start::<f64>(&model, drag);
+    let (mut loose, mut tight) =
+        (Implicit::new(&dynamics, settings(1e-6, 200)), Implicit::new(&dynamics, settings(1e-11, 200)));
+    let mut other = state.clone();
+    for _ in 0..10 {
+        loose.step(&mut state, &mut dynamics, 0.0, H);
+        tight.step(&mut other, &mut dynamics, 0.0, H);
+    }
+    let (loose, tight) = (loose.stats(), tight.stats());
+    assert_eq!(tight.unconverged_solves, 0);
+    assert!(tight.last_residual <= 1e-11);
+    assert!(tight.total_iterations <= 3 * loose.total_iterations, "{tight:?} against {loose:?}");
+}
