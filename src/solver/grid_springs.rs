@@ -294,18 +294,21 @@ fn in_bands<T: Send, const O: usize>(
 /// What a pass computing accelerations row by row does with each row of them, given the row's
 /// part of its `O` output arrays.
 pub(crate) trait AccelerationRows<T, const O: usize>: Sync {
-    /// Takes the accelerations `a` of the particles `particles` (indices into the whole state),
-    /// with the same particles of each output.
-    fn take(&self, particles: Range<usize>, a: [&[T]; 3], outputs: [&mut [T]; O]);
+    /// Takes the total force `force` on the particles `particles` (indices into the whole state)
+    /// and their inverse masses, with the same particles of each output: their accelerations are
+    /// `force * inverse_mass`, which the implementation computes where it uses them.
+    fn take(&self, particles: Range<usize>, force: [&[T]; 3], inverse_masses: &[T], outputs: [&mut [T]; O]);
 }
 
 /// Writes the accelerations into the three outputs, one per axis.
 struct Store;
 
 impl<T: Real> AccelerationRows<T, 3> for Store {
-    fn take(&self, _: Range<usize>, a: [&[T]; 3], outputs: [&mut [T]; 3]) {
-        for (out, a) in outputs.into_iter().zip(a) {
-            out.copy_from_slice(a);
+    fn take(&self, _: Range<usize>, force: [&[T]; 3], inverse_masses: &[T], outputs: [&mut [T]; 3]) {
+        for (out, f) in outputs.into_iter().zip(force) {
+            for ((a, &f), &w) in out.iter_mut().zip(f).zip(inverse_masses) {
+                *a = f * w;
+            }
         }
     }
 }
@@ -583,8 +586,8 @@ impl<T: Real> BodyForce<'_, T> {
     }
 }
 
-/// A sink that turns each row's force into accelerations, its force times the inverse mass, and
-/// hands them to an [`AccelerationRows`].
+/// A sink that hands each row's total force, whose accelerations are its force times the inverse
+/// mass, to an [`AccelerationRows`].
 struct Accelerations<'a, T, U, const O: usize> {
     body: BodyForce<'a, T>,
     /// The body's first particle in the whole state.
@@ -600,19 +603,14 @@ impl<T: Real, U: AccelerationRows<T, O>, const O: usize> RowSink<T> for Accelera
         self.body.start(row, force);
     }
 
-    fn finish(&mut self, row: usize, mut force: [&mut [T]; 3]) {
+    fn finish(&mut self, row: usize, force: [&mut [T]; 3]) {
         let nx = self.body.nx;
         let local = row * nx..(row + 1) * nx;
         let cells = self.body.offset + local.start..self.body.offset + local.end;
         let inverse_masses = &self.inverse_masses[cells.clone()];
-        for f in force.each_mut() {
-            for (f, &w) in f.iter_mut().zip(inverse_masses) {
-                *f *= w;
-            }
-        }
         let particles = self.first + cells.start..self.first + cells.end;
         let outputs = self.outputs.each_mut().map(|out| &mut out[local.clone()]);
-        self.update.take(particles, force.each_ref().map(|a| &**a), outputs);
+        self.update.take(particles, force.map(|f| &*f), inverse_masses, outputs);
     }
 }
 

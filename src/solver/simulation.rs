@@ -281,22 +281,25 @@ fn released_energy(model: &Model, gravity: DVec3) -> f64 {
 
 /// `Σ m |v|²` and the sum of every position component, for the divergence watch. The sums run in
 /// eight interleaved lanes, which vectorise, where one running sum would wait on every addition.
-fn watch_sums<T: Real>(masses: &[T], state: &State<T>) -> (T, T) {
+fn watch_sums<'a, T: Real>(masses: &[T], state: &'a State<T>) -> (T, T) {
     const LANES: usize = 8;
     let [vx, vy, vz] = state.velocities.axes();
     let [x, y, z] = state.positions.axes();
-    let whole = masses.len() - masses.len() % LANES;
+    let (mass_blocks, _) = masses.as_chunks::<LANES>();
+    let blocks =
+        |axis: &'a [T]| -> &'a [[T; LANES]] { axis[..mass_blocks.len() * LANES].as_chunks::<LANES>().0 };
+    let (bvx, bvy, bvz, bx, by, bz) = (blocks(vx), blocks(vy), blocks(vz), blocks(x), blocks(y), blocks(z));
     let mut kinetic = [T::ZERO; LANES];
     let mut position = [T::ZERO; LANES];
-    for start in (0..whole).step_by(LANES) {
-        let block = start..start + LANES;
-        let [m, vx, vy, vz, x, y, z] = [masses, vx, vy, vz, x, y, z].map(|a| &a[block.clone()]);
+    for (block, m) in mass_blocks.iter().enumerate() {
+        let (vx, vy, vz, x, y, z) =
+            (&bvx[block], &bvy[block], &bvz[block], &bx[block], &by[block], &bz[block]);
         for lane in 0..LANES {
             kinetic[lane] += m[lane] * (vx[lane] * vx[lane] + vy[lane] * vy[lane] + vz[lane] * vz[lane]);
             position[lane] += x[lane] + y[lane] + z[lane];
         }
     }
-    for p in whole..masses.len() {
+    for p in mass_blocks.len() * LANES..masses.len() {
         kinetic[0] += masses[p] * (vx[p] * vx[p] + vy[p] * vy[p] + vz[p] * vz[p]);
         position[0] += x[p] + y[p] + z[p];
     }

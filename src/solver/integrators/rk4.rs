@@ -120,16 +120,17 @@ impl<T: Real> Rk4<T> {
         let Self { trial, other_trial, sum_x, sum_v, .. } = self;
         let other = other_trial.as_mut().expect("a fused step has two trial states");
         let [x0, v0] = [state.positions.axes(), state.velocities.axes()];
-        let first = Stage { x0, v0, v: v0, first: true, advance: half };
+        let first = Stage { number: StageNumber::First, x0, v0, v: v0, advance: half };
         fused_stage(dynamics, &first, &state.positions, &state.velocities, sum_x, sum_v, trial);
         // Stages 2 and 3 at the midpoint, from one trial state into the other and back.
-        let second = Stage { x0, v0, v: trial.velocities.axes(), first: false, advance: half };
+        let second = Stage { number: StageNumber::Second, x0, v0, v: trial.velocities.axes(), advance: half };
         fused_stage(dynamics, &second, &trial.positions, &trial.velocities, sum_x, sum_v, other);
-        let third = Stage { x0, v0, v: other.velocities.axes(), first: false, advance: h };
+        let third = Stage { number: StageNumber::Third, x0, v0, v: other.velocities.axes(), advance: h };
         fused_stage(dynamics, &third, &other.positions, &other.velocities, sum_x, sum_v, trial);
         let last = Last {
             sum_x: sum_x.axes(),
             sum_v: sum_v.axes(),
+            v3: other.velocities.axes(),
             v: trial.velocities.axes(),
             sixth: h / T::from_f64(6.0),
         };
@@ -142,41 +143,72 @@ impl<T: Real> Rk4<T> {
 /// Stages 1 to 3 fused into their accelerations pass: with `v` the stage's trial velocity and
 /// `a` its acceleration, adds `v` and `a` to the weighted sums (once in the first stage, twice
 /// after) and writes the next trial state `x0 + v advance`, `v0 + a advance`. The outputs are the
-/// sums of `x` and `v`, then the next trial's positions and velocities, per axis.
+/// sums of `x` and `v`, then the next trial's positions and velocities, per axis. The first
+/// stage's `v` is `v0`, so its term of the sum of `x` is added by the second stage rather than
+/// stored by the first: the same operations on the same values, one stream fewer.
 struct Stage<'a, T> {
+    number: StageNumber,
     x0: [&'a [T]; 3],
     v0: [&'a [T]; 3],
     v: [&'a [T]; 3],
-    first: bool,
     advance: T,
 }
 
+/// Which of stages 1 to 3 a [`Stage`] is.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum StageNumber {
+    First,
+    Second,
+    Third,
+}
+
 impl<T: Real> AccelerationRows<T, 12> for Stage<'_, T> {
-    fn take(&self, particles: Range<usize>, a: [&[T]; 3], outputs: [&mut [T]; 12]) {
+    fn take(&self, particles: Range<usize>, force: [&[T]; 3], inverse_masses: &[T], outputs: [&mut [T]; 12]) {
         let [sx, sy, sz, su, sv, sw, tx, ty, tz, tu, tv, tw] = outputs;
         let axes = [[sx, su, tx, tu], [sy, sv, ty, tv], [sz, sw, tz, tw]];
-        let two = T::from_f64(2.0);
         for (axis, [sum_x, sum_v, trial_x, trial_v]) in axes.into_iter().enumerate() {
-            let (x0, v0, v) = (
+            let inputs = [
                 &self.x0[axis][particles.clone()],
                 &self.v0[axis][particles.clone()],
                 &self.v[axis][particles.clone()],
-            );
-            let sums = sum_x.iter_mut().zip(sum_v.iter_mut());
-            let trials = trial_x.iter_mut().zip(trial_v.iter_mut());
-            let inputs = x0.iter().zip(v0).zip(v.iter().zip(a[axis]));
-            for (((sum_x, sum_v), (trial_x, trial_v)), ((&x0, &v0), (&v, &a))) in sums.zip(trials).zip(inputs)
-            {
-                if self.first {
-                    (*sum_x, *sum_v) = (v, a);
-                } else {
-                    *sum_x += v * two;
-                    *sum_v += a * two;
-                }
-                *trial_x = x0 + v * self.advance;
-                *trial_v = v0 + a * self.advance;
+                force[axis],
+                inverse_masses,
+            ];
+            let outputs = [sum_x, sum_v, trial_x, trial_v];
+            match self.number {
+                StageNumber::First => stage_row::<T, 1>(inputs, outputs, self.advance),
+                StageNumber::Second => stage_row::<T, 2>(inputs, outputs, self.advance),
+                StageNumber::Third => stage_row::<T, 3>(inputs, outputs, self.advance),
             }
         }
+    }
+}
+
+/// Stage `STAGE`'s update of one axis of a row (see [`Stage`]), from the row's force `f` and
+/// inverse masses `w`.
+#[inline(always)]
+fn stage_row<T: Real, const STAGE: u8>(
+    [x0, v0, v, f, w]: [&[T]; 5],
+    [sum_x, sum_v, trial_x, trial_v]: [&mut [T]; 4],
+    advance: T,
+) {
+    let n = x0.len();
+    let (v0, v, f, w) = (&v0[..n], &v[..n], &f[..n], &w[..n]);
+    let (sum_x, sum_v, trial_x, trial_v) =
+        (&mut sum_x[..n], &mut sum_v[..n], &mut trial_x[..n], &mut trial_v[..n]);
+    let two = T::from_f64(2.0);
+    for i in 0..n {
+        let a = f[i] * w[i];
+        match STAGE {
+            1 => sum_v[i] = a,
+            2 => {
+                sum_x[i] = v0[i] + v[i] * two;
+                sum_v[i] += a * two;
+            }
+            _ => sum_v[i] += a * two,
+        }
+        trial_x[i] = x0[i] + v[i] * advance;
+        trial_v[i] = v0[i] + a * advance;
     }
 }
 
@@ -199,25 +231,31 @@ fn fused_stage<T: Real>(
 }
 
 /// Stage 4 fused into its accelerations pass: `x += (Σx + v) h / 6`, `v += (Σv + a) h / 6` with
-/// `v` the last trial velocity and `a` its acceleration. The outputs are the state's positions
-/// and velocities, per axis.
+/// `v` the last trial velocity and `a` its acceleration. The third stage's term of `Σx`, twice its
+/// trial velocity `v3`, is added here (one stream fewer than storing it there, the same
+/// operations). The outputs are the state's positions and velocities, per axis.
 struct Last<'a, T> {
     sum_x: [&'a [T]; 3],
     sum_v: [&'a [T]; 3],
+    v3: [&'a [T]; 3],
     v: [&'a [T]; 3],
     sixth: T,
 }
 
 impl<T: Real> AccelerationRows<T, 6> for Last<'_, T> {
-    fn take(&self, particles: Range<usize>, a: [&[T]; 3], outputs: [&mut [T]; 6]) {
+    fn take(&self, particles: Range<usize>, force: [&[T]; 3], inverse_masses: &[T], outputs: [&mut [T]; 6]) {
         let [x, y, z, u, v, w] = outputs;
+        let two = T::from_f64(2.0);
         for (axis, (x, v)) in [(x, u), (y, v), (z, w)].into_iter().enumerate() {
-            let (sum_x, sum_v) = (&self.sum_x[axis][particles.clone()], &self.sum_v[axis][particles.clone()]);
-            for ((x, &s), &u) in x.iter_mut().zip(sum_x).zip(&self.v[axis][particles.clone()]) {
-                *x += (s + u) * self.sixth;
+            let p = particles.clone();
+            let (sum_x, v3, v4) =
+                (&self.sum_x[axis][p.clone()], &self.v3[axis][p.clone()], &self.v[axis][p.clone()]);
+            for ((x, &s), (&v3, &v4)) in x.iter_mut().zip(sum_x).zip(v3.iter().zip(v4)) {
+                *x += (s + v3 * two + v4) * self.sixth;
             }
-            for ((v, &s), &a) in v.iter_mut().zip(sum_v).zip(a[axis]) {
-                *v += (s + a) * self.sixth;
+            let sum_v = &self.sum_v[axis][p];
+            for ((v, &s), (&f, &w)) in v.iter_mut().zip(sum_v).zip(force[axis].iter().zip(inverse_masses)) {
+                *v += (s + f * w) * self.sixth;
             }
         }
     }
