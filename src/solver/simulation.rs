@@ -19,7 +19,7 @@ use super::self_collision::SelfCollision;
 use super::stability::{self, Divergence, DivergenceReason};
 use super::strain_limit::StrainLimit;
 use super::wind::WindConfig;
-use super::{Real, State, Vec3, normals, springs};
+use super::{Real, State, Vec3, normals, parallel, springs};
 
 /// Every stage name a simulation or a run can report, in the order a step runs them: the
 /// forces, then the constraints and contacts. `normals` is also the per-frame normals a run's
@@ -279,12 +279,34 @@ fn released_energy(model: &Model, gravity: DVec3) -> f64 {
     model.total_mass() * gravity.length() * (extent + 1.0)
 }
 
-/// `Σ m |v|²` and the sum of every position component, for the divergence watch. The sums run in
-/// eight interleaved lanes, which vectorise, where one running sum would wait on every addition.
-fn watch_sums<'a, T: Real>(masses: &[T], state: &'a State<T>) -> (T, T) {
-    const LANES: usize = 8;
+/// `Σ m |v|²` and the sum of every position component, for the divergence watch. A large state
+/// is cut in halves summed side by side on the solver's threads; the cuts depend on the particle
+/// count only, so the sums do not depend on the thread count.
+fn watch_sums<T: Real>(masses: &[T], state: &State<T>) -> (T, T) {
     let [vx, vy, vz] = state.velocities.axes();
     let [x, y, z] = state.positions.axes();
+    sums_in_halves(masses, [vx, vy, vz, x, y, z])
+}
+
+/// The most particles [`watch_sums`] adds on one thread.
+const WATCH_PIECE: usize = 4 * parallel::MIN_PARTICLES_PER_BAND;
+
+/// [`watch_sums`] of `masses` and the velocities then positions `axes`, in halves.
+fn sums_in_halves<T: Real>(masses: &[T], axes: [&[T]; 6]) -> (T, T) {
+    if masses.len() <= WATCH_PIECE {
+        return lane_sums(masses, axes);
+    }
+    let middle = (masses.len() / 2).next_multiple_of(LANES);
+    let (low, high) = rayon::join(
+        || sums_in_halves(&masses[..middle], axes.map(|axis| &axis[..middle])),
+        || sums_in_halves(&masses[middle..], axes.map(|axis| &axis[middle..])),
+    );
+    (low.0 + high.0, low.1 + high.1)
+}
+
+/// The watch's sums in eight interleaved lanes, which vectorise, where one running sum would
+/// wait on every addition.
+fn lane_sums<'a, T: Real>(masses: &[T], [vx, vy, vz, x, y, z]: [&'a [T]; 6]) -> (T, T) {
     let (mass_blocks, _) = masses.as_chunks::<LANES>();
     let blocks =
         |axis: &'a [T]| -> &'a [[T; LANES]] { axis[..mass_blocks.len() * LANES].as_chunks::<LANES>().0 };
@@ -307,9 +329,29 @@ fn watch_sums<'a, T: Real>(masses: &[T], state: &'a State<T>) -> (T, T) {
     (total(kinetic), total(position))
 }
 
+/// The lanes of the watch's sums: eight `f32` fill an AVX2 register.
+const LANES: usize = 8;
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn watch_sums_of_a_large_state_are_its_halves_added() {
+        let n = 3 * WATCH_PIECE + 13;
+        let masses: Vec<f32> = (0..n).map(|p| 1.0 + (p % 7) as f32).collect();
+        let state = State {
+            positions: (0..n).map(|p| Vec3::new((p % 5) as f32, 0.5, -2.0)).collect(),
+            velocities: (0..n).map(|p| Vec3::new(1.0, -((p % 3) as f32), 2.0)).collect(),
+        };
+        let (kinetic, position) = watch_sums(&masses, &state);
+        let exact: f64 = (0..n).map(|p| (1.0 + (p % 7) as f64) * (5.0 + ((p % 3) * (p % 3)) as f64)).sum();
+        assert!((kinetic as f64 - exact).abs() < 1e-6 * exact, "{kinetic} against {exact}");
+        let exact: f64 = (0..n).map(|p| (p % 5) as f64 - 1.5).sum();
+        assert!((position as f64 - exact).abs() < 1e-6 * exact.abs(), "{position} against {exact}");
+        let one_thread = rayon::ThreadPoolBuilder::new().num_threads(1).build().expect("a pool");
+        assert_eq!(one_thread.install(|| watch_sums(&masses, &state)), (kinetic, position));
+    }
 
     #[test]
     fn watch_sums_add_every_particle_once() {
