@@ -748,19 +748,25 @@ mod tests {
         }
     }
 
+    /// Masses that differ from particle to particle, with particle 3 pinned: the masses and the
+    /// inverse masses.
+    fn masses(n: usize) -> (Vec<f64>, Vec<f64>) {
+        let masses: Vec<f64> = (0..n).map(|p| 0.01 + 0.001 * p as f64).collect();
+        let inverse = masses.iter().enumerate().map(|(p, m)| if p == 3 { 0.0 } else { 1.0 / m }).collect();
+        (masses, inverse)
+    }
+
+    /// Gravity and a drag of 0.3 s⁻¹ on particles of `masses`.
+    fn body_terms<'a>(masses: &'a [f64], inverse_masses: &'a [f64]) -> BodyTerms<'a, f64> {
+        BodyTerms { masses, inverse_masses, gravity: Vec3::new(0.0, -9.81, 0.0), drag: 0.3 }
+    }
+
     #[test]
     fn accelerations_do_not_depend_on_the_number_of_bands() {
         let (model, x, v) = moving_cloth();
         let n = x.len();
-        let masses: Vec<f64> = (0..n).map(|p| 0.01 + 0.001 * p as f64).collect();
-        let inverse_masses: Vec<f64> =
-            masses.iter().enumerate().map(|(p, m)| if p == 3 { 0.0 } else { 1.0 / m }).collect();
-        let inputs = BodyTerms {
-            masses: &masses,
-            inverse_masses: &inverse_masses,
-            gravity: Vec3::new(0.0, -9.81, 0.0),
-            drag: 0.3,
-        };
+        let (masses, inverse_masses) = masses(n);
+        let inputs = body_terms(&masses, &inverse_masses);
         let accelerations = |count: usize| {
             let mut out = Vectors::zeros(n);
             banded(&model, count).accelerations(&inputs, &x, &v, &mut out);
@@ -781,15 +787,8 @@ mod tests {
     fn symplectic_steps_do_not_depend_on_the_number_of_bands() {
         let (model, x, v) = moving_cloth();
         let n = x.len();
-        let masses: Vec<f64> = (0..n).map(|p| 0.01 + 0.001 * p as f64).collect();
-        let inverse_masses: Vec<f64> =
-            masses.iter().enumerate().map(|(p, m)| if p == 3 { 0.0 } else { 1.0 / m }).collect();
-        let inputs = BodyTerms {
-            masses: &masses,
-            inverse_masses: &inverse_masses,
-            gravity: Vec3::new(0.0, -9.81, 0.0),
-            drag: 0.3,
-        };
+        let (masses, inverse_masses) = masses(n);
+        let inputs = body_terms(&masses, &inverse_masses);
         let step = |count: usize| {
             let mut grid = banded(&model, count);
             let state = State { positions: x.clone(), velocities: v.clone() };
