@@ -276,9 +276,10 @@ fn in_bands<T: Send, const O: usize>(
     outputs: [&mut [T]; O],
     work: &(impl Fn(&mut Band<T>, [&mut [T]; O]) + Sync),
 ) {
-    if let [band] = bands {
-        work(band, outputs);
-        return;
+    match bands {
+        [] => return,
+        [band] => return work(band, outputs),
+        _ => {}
     }
     let middle = bands.len() / 2;
     let split = (bands[middle].rows.start - bands[0].rows.start) * nx;
