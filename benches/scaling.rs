@@ -12,8 +12,8 @@ use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use glam::DVec3;
 
 use drape::solver::{
-    Cloth, Collider, Config, DEFAULT_FRICTION, IntegratorKind, Model, Orientation, Shape, Simulation,
-    SpringParams, parallel,
+    Cloth, Collider, Config, DEFAULT_FRICTION, IntegratorKind, Model, Shape, Simulation, SpringParams,
+    parallel,
 };
 
 /// The peers' cloth, 1 m², 1 kg, every spring at k = 5000 N/m and damping 0.5 N·s/m, held flat
@@ -22,16 +22,9 @@ fn cloth(n: usize) -> Model {
     let springs = SpringParams { stiffness: 5000.0, damping: 0.5 };
     let mut model = Model::default();
     model.add_cloth(&Cloth {
-        size: [1.0, 1.0],
-        resolution: [n, n],
         center: DVec3::new(0.0, 0.6, 0.0),
-        orientation: Orientation::Horizontal,
-        mass: 1.0,
         velocity: DVec3::new(0.0, -1.0, 0.0),
-        structural: springs,
-        shear: springs,
-        bending: springs,
-        pins: vec![],
+        ..Cloth::square_metre(n, springs)
     });
     model
 }

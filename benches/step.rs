@@ -14,8 +14,7 @@ use criterion::{Criterion, criterion_group, criterion_main};
 use glam::DVec3;
 
 use drape::solver::{
-    Cloth, Config, IntegratorKind, IntegratorSettings, Mesh, Model, Orientation, Real, Simulation,
-    SpringParams, parallel,
+    Cloth, Config, IntegratorKind, IntegratorSettings, Mesh, Model, Real, Simulation, SpringParams, parallel,
 };
 
 /// The hanging cloth of the performance peers: 1 m², 1 kg, every spring at k = 5000 N/m and
@@ -23,18 +22,7 @@ use drape::solver::{
 fn cloth(n: usize) -> Model {
     let springs = SpringParams { stiffness: 5000.0, damping: 0.5 };
     let mut model = Model::default();
-    model.add_cloth(&Cloth {
-        size: [1.0, 1.0],
-        resolution: [n, n],
-        center: DVec3::new(0.5, 1.0, 0.5),
-        orientation: Orientation::Horizontal,
-        mass: 1.0,
-        velocity: DVec3::ZERO,
-        structural: springs,
-        shear: springs,
-        bending: springs,
-        pins: vec![[0, 0], [n - 1, 0]],
-    });
+    model.add_cloth(&Cloth { pins: vec![[0, 0], [n - 1, 0]], ..Cloth::square_metre(n, springs) });
     model
 }
 

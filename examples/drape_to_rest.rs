@@ -27,8 +27,7 @@
 use std::time::{Duration, Instant};
 
 use drape::solver::{
-    Cloth, Config, IntegratorKind, IntegratorSettings, Model, Orientation, Real, Simulation, SpringParams,
-    State,
+    Cloth, Config, IntegratorKind, IntegratorSettings, Model, Real, Simulation, SpringParams, State,
 };
 use glam::DVec3;
 
@@ -44,18 +43,8 @@ const N: usize = 64;
 fn cloth() -> Model {
     let springs = SpringParams { stiffness: 5000.0, damping: 0.5 };
     let mut model = Model::default();
-    model.add_cloth(&Cloth {
-        size: [1.0, 1.0],
-        resolution: [N, N],
-        center: DVec3::new(0.5, 1.0, 0.5),
-        orientation: Orientation::Horizontal,
-        mass: 1.0,
-        velocity: DVec3::ZERO,
-        structural: springs,
-        shear: springs,
-        bending: springs,
-        pins: vec![[0, 0], [N - 1, 0], [0, N - 1], [N - 1, N - 1]],
-    });
+    let pins = vec![[0, 0], [N - 1, 0], [0, N - 1], [N - 1, N - 1]];
+    model.add_cloth(&Cloth { pins, ..Cloth::square_metre(N, springs) });
     model
 }
 

@@ -12,18 +12,7 @@ use super::*;
 fn peers_cloth(n: usize) -> (Model, f64) {
     let springs = SpringParams { stiffness: 5000.0, damping: 0.5 };
     let mut model = Model::default();
-    model.add_cloth(&Cloth {
-        size: [1.0, 1.0],
-        resolution: [n, n],
-        center: DVec3::new(0.5, 1.0, 0.5),
-        orientation: Orientation::Horizontal,
-        mass: 1.0,
-        velocity: DVec3::ZERO,
-        structural: springs,
-        shear: springs,
-        bending: springs,
-        pins: vec![[0, 0], [n - 1, 0]],
-    });
+    model.add_cloth(&Cloth { pins: vec![[0, 0], [n - 1, 0]], ..Cloth::square_metre(n, springs) });
     (model, 0.01 * (n * n) as f64)
 }
 
