@@ -4,7 +4,7 @@
 
 use glam::DVec3;
 
-use super::super::super::{Cloth, Model, Orientation, SpringParams, State, Vec3};
+use super::super::super::{Cloth, Model, SpringParams, State, Vec3};
 use super::*;
 
 /// The performance peers' hanging cloth at `n × n`: 1 m², 1 kg, every spring at k = 5000 N/m and
@@ -48,18 +48,7 @@ fn a_single_cloth_takes_the_multigrid_path_and_anything_else_the_spring_list() {
 fn cloth_of(model: &Model) -> Cloth {
     let [nx, ny] = model.grids[0].resolution;
     let springs = SpringParams { stiffness: 5000.0, damping: 0.5 };
-    Cloth {
-        size: [1.0, 1.0],
-        resolution: [nx, ny],
-        center: DVec3::ZERO,
-        orientation: Orientation::Horizontal,
-        mass: 1.0,
-        velocity: DVec3::ZERO,
-        structural: springs,
-        shear: springs,
-        bending: springs,
-        pins: vec![],
-    }
+    Cloth { resolution: [nx, ny], center: DVec3::ZERO, ..Cloth::square_metre(nx, springs) }
 }
 
 /// Steps the 64² cloth with both solvers side by side, each from its own state, and checks
