@@ -6,6 +6,7 @@
 //! into a [`Simulation`] in `f32` or `f64`, which holds only the stages the scene needs and steps
 //! without allocating. Two runs of the same inputs give bit-identical results.
 
+mod arrays;
 mod bodies;
 mod contacts;
 mod diagnostics;

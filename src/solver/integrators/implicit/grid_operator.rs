@@ -20,14 +20,15 @@
 use rayon::prelude::*;
 
 use super::super::super::Real;
+use super::super::super::arrays::Arrays;
 use super::super::super::sym3::Sym3;
 
 /// A vector field over the particles, one array per axis.
-pub(crate) type Field<T> = [Vec<T>; 3];
+pub(crate) type Field<T> = Arrays<T, 3>;
 
 /// A field of zeros over `n` particles.
 pub(crate) fn zero_field<T: Real>(n: usize) -> Field<T> {
-    std::array::from_fn(|_| vec![T::ZERO; n])
+    Arrays::zeros(n)
 }
 
 /// One spring family of a grid: every spring joins particle `p` to `p + offset` (grid steps
@@ -55,12 +56,12 @@ pub(crate) struct GridOperator<T> {
     /// The distinct offsets of the couplings.
     offsets: Vec<[isize; 2]>,
     /// Per particle: the diagonal block.
-    diagonal: [Vec<T>; 6],
+    diagonal: Arrays<T, 6>,
     /// Per offset, per lower particle `p`: `[u_x, u_y, u_z, σ]` of the spring whose block
     /// `-(u uᵀ + σ I)` is `A[p, p + off]`.
-    couplings: Vec<[Vec<T>; 4]>,
+    couplings: Vec<Arrays<T, 4>>,
     /// Per particle: `ω D⁻¹`, the damped block-Jacobi smoother.
-    smoother: [Vec<T>; 6],
+    smoother: Arrays<T, 6>,
     /// Particles held fixed: their rows and columns are decoupled (only the mass on the diagonal).
     pub pinned: Vec<usize>,
     /// Per-row scratch for the right-hand side's spring terms.
@@ -84,14 +85,13 @@ impl<T: Real> GridOperator<T> {
     pub fn new(nx: usize, ny: usize, families: &[Family<T>], pinned: Vec<usize>) -> Self {
         let n = nx * ny;
         let offsets: Vec<[isize; 2]> = families.iter().map(|f| f.offset).collect();
-        let blocks = || std::array::from_fn(|_| vec![T::ZERO; n]);
         Self {
             nx,
             ny,
-            couplings: offsets.iter().map(|_| std::array::from_fn(|_| vec![T::ZERO; n])).collect(),
+            couplings: offsets.iter().map(|_| Arrays::zeros(n)).collect(),
             offsets,
-            diagonal: blocks(),
-            smoother: blocks(),
+            diagonal: Arrays::zeros(n),
+            smoother: Arrays::zeros(n),
             pinned,
             pull: zero_field(nx),
         }
@@ -120,7 +120,7 @@ impl<T: Real> GridOperator<T> {
         mut rhs: Option<RightHandSide<'_, T>>,
     ) {
         let (nx, ny) = (self.nx, self.ny);
-        let [dxx, dyy, dzz, dxy, dxz, dyz] = &mut self.diagonal;
+        let [dxx, dyy, dzz, dxy, dxz, dyz] = self.diagonal.arrays_mut();
         for (p, &m) in mass.iter().enumerate() {
             (dxx[p], dyy[p], dzz[p]) = (m, m, m);
             (dxy[p], dxz[p], dyz[p]) = (T::ZERO, T::ZERO, T::ZERO);
@@ -141,14 +141,14 @@ impl<T: Real> GridOperator<T> {
             for j in 0..ny - dj as usize {
                 let p = j * nx + i0;
                 let q = (p as isize + shift) as usize;
-                let xp = positions.each_ref().map(|a| &a[p..p + len]);
-                let xq = positions.each_ref().map(|a| &a[q..q + len]);
-                let coupling = self.couplings[slot].each_mut().map(|a| &mut a[p..p + len]);
+                let xp = positions.arrays().map(|a| &a[p..p + len]);
+                let xq = positions.arrays().map(|a| &a[q..q + len]);
+                let coupling = self.couplings[slot].arrays_mut().map(|a| &mut a[p..p + len]);
                 match rhs.as_mut() {
                     Some(RightHandSide { velocities, rhs }) => {
-                        let vp = velocities.each_ref().map(|a| &a[p..p + len]);
-                        let vq = velocities.each_ref().map(|a| &a[q..q + len]);
-                        let pull = self.pull.each_mut().map(|a| &mut a[..len]);
+                        let vp = velocities.arrays().map(|a| &a[p..p + len]);
+                        let vq = velocities.arrays().map(|a| &a[q..q + len]);
+                        let pull = self.pull.arrays_mut().map(|a| &mut a[..len]);
                         spring_row::<T, true>(&spring, xp, xq, coupling, Some((vp, vq, pull)));
                         for (axis, pull) in rhs.iter_mut().zip(&self.pull) {
                             sub_assign(&mut axis[p..p + len], &pull[..len]);
@@ -170,9 +170,9 @@ impl<T: Real> GridOperator<T> {
             for j in 0..ny - dj as usize {
                 let p = j * nx + i0;
                 let q = (p as isize + shift) as usize;
-                let c = self.couplings[slot].each_ref().map(|a| &a[p..p + len]);
-                add_spring_blocks(self.diagonal.each_mut().map(|a| &mut a[p..p + len]), c);
-                add_spring_blocks(self.diagonal.each_mut().map(|a| &mut a[q..q + len]), c);
+                let c = self.couplings[slot].arrays().map(|a| &a[p..p + len]);
+                add_spring_blocks(self.diagonal.arrays_mut().map(|a| &mut a[p..p + len]), c);
+                add_spring_blocks(self.diagonal.arrays_mut().map(|a| &mut a[q..q + len]), c);
             }
         }
         self.decouple_pinned(mass);
@@ -201,15 +201,15 @@ impl<T: Real> GridOperator<T> {
         let invert = |(k, mut s): (usize, [&mut [T]; 6]), piece: usize| {
             for m in 0..s[0].len() {
                 let p = k * piece + m;
-                let block = Sym3::from_entries(diagonal.each_ref().map(|a| a[p]));
+                let block = Sym3::from_entries(diagonal.arrays().map(|a| a[p]));
                 for (s, e) in s.iter_mut().zip((block.inverse() * omega).entries()) {
                     s[m] = e;
                 }
             }
         };
-        let [s0, s1, s2, s3, s4, s5] = &mut self.smoother;
+        let [s0, s1, s2, s3, s4, s5] = self.smoother.arrays_mut();
         if self.nx * self.ny < PARALLEL_PARTICLES {
-            invert((0, [s0, s1, s2, s3, s4, s5].map(|s| s.as_mut_slice())), 0);
+            invert((0, [s0, s1, s2, s3, s4, s5]), 0);
             return;
         }
         let piece = self.nx * 16;
@@ -258,8 +258,8 @@ impl<T: Real> GridOperator<T> {
             let local = (j - rows.start) * nx;
             let yr = [&mut y0[local..local + nx], &mut y1[local..local + nx], &mut y2[local..local + nx]];
             let p = j * nx;
-            let xr = x.each_ref().map(|a| &a[p..p + nx]);
-            let d = self.diagonal.each_ref().map(|a| &a[p..p + nx]);
+            let xr = x.arrays().map(|a| &a[p..p + nx]);
+            let d = self.diagonal.arrays().map(|a| &a[p..p + nx]);
             block_products::<T, false>(yr, d, xr);
             for (&[di, dj], coupling) in self.offsets.iter().zip(&self.couplings) {
                 let dj = dj as usize;
@@ -274,8 +274,8 @@ impl<T: Real> GridOperator<T> {
                         &mut y1[local + i0..local + i1],
                         &mut y2[local + i0..local + i1],
                     ];
-                    let c = coupling.each_ref().map(|a| &a[p..p + len]);
-                    subtract_spring_products(yr, c, x.each_ref().map(|a| &a[q..q + len]));
+                    let c = coupling.arrays().map(|a| &a[p..p + len]);
+                    subtract_spring_products(yr, c, x.arrays().map(|a| &a[q..q + len]));
                 }
                 // A[p, p - off] x[p - off] = A[p - off, p]ᵀ x[p - off]; the blocks are symmetric.
                 let (i0, i1) = (0.max(di) as usize, (nx as isize).min(nx as isize + di).max(0) as usize);
@@ -288,8 +288,8 @@ impl<T: Real> GridOperator<T> {
                         &mut y1[local + i0..local + i1],
                         &mut y2[local + i0..local + i1],
                     ];
-                    let c = coupling.each_ref().map(|a| &a[q..q + len]);
-                    subtract_spring_products(yr, c, x.each_ref().map(|a| &a[q..q + len]));
+                    let c = coupling.arrays().map(|a| &a[q..q + len]);
+                    subtract_spring_products(yr, c, x.arrays().map(|a| &a[q..q + len]));
                 }
             }
             if let Some(b) = b {
@@ -306,7 +306,7 @@ impl<T: Real> GridOperator<T> {
     /// parallel; every `y[p]` is summed in the same order either way, so the bits do not depend
     /// on the cut or on the number of threads.
     fn apply_all(&self, x: &Field<T>, b: Option<&Field<T>>, y: &mut Field<T>) {
-        let [y0, y1, y2] = y;
+        let [y0, y1, y2] = y.arrays_mut();
         if !self.is_parallel() {
             self.apply_rows(x, b, [y0, y1, y2], 0..self.ny);
             return;
@@ -346,10 +346,9 @@ impl<T: Real> GridOperator<T> {
     /// `x = ω D⁻¹ r`, or `x += ω D⁻¹ r` with `ADD`; in pieces on the pool's threads on a large
     /// grid (each entry is computed alone, so the pieces change no bits).
     fn smoother_products<const ADD: bool>(&self, r: &Field<T>, x: &mut Field<T>) {
-        let [x0, x1, x2] = x;
+        let [x0, x1, x2] = x.arrays_mut();
         if !self.is_parallel() {
-            let (smoother, r) =
-                (self.smoother.each_ref().map(|a| a.as_slice()), r.each_ref().map(|a| a.as_slice()));
+            let (smoother, r) = (self.smoother.arrays(), r.arrays());
             block_products::<T, ADD>([x0, x1, x2], smoother, r);
             return;
         }
@@ -360,15 +359,15 @@ impl<T: Real> GridOperator<T> {
             .enumerate()
             .for_each(|(k, ((x0, x1), x2))| {
                 let at = k * piece..k * piece + x0.len();
-                let smoother = self.smoother.each_ref().map(|a| &a[at.clone()]);
-                block_products::<T, ADD>([x0, x1, x2], smoother, r.each_ref().map(|a| &a[at.clone()]));
+                let smoother = self.smoother.arrays().map(|a| &a[at.clone()]);
+                block_products::<T, ADD>([x0, x1, x2], smoother, r.arrays().map(|a| &a[at.clone()]));
             });
     }
 
     /// The block `A[p, q]` for `q` equal to `p` or one stencil offset away (zero otherwise).
     pub fn block(&self, p: usize, q: usize) -> Sym3<T> {
         if p == q {
-            return Sym3::from_entries(self.diagonal.each_ref().map(|a| a[p]));
+            return Sym3::from_entries(self.diagonal.arrays().map(|a| a[p]));
         }
         let (lower, upper) = (p.min(q), p.max(q));
         let (li, lj) = ((lower % self.nx) as isize, (lower / self.nx) as isize);
@@ -376,7 +375,7 @@ impl<T: Real> GridOperator<T> {
         let offset = [ui - li, uj - lj];
         match self.offsets.iter().position(|&o| o == offset) {
             Some(slot) => {
-                let [ux, uy, uz, sigma] = self.couplings[slot].each_ref().map(|a| a[lower]);
+                let [ux, uy, uz, sigma] = self.couplings[slot].arrays().map(|a| a[lower]);
                 let u = super::super::super::Vec3::new(ux, uy, uz);
                 (Sym3::outer(u) + Sym3::identity() * sigma) * -T::ONE
             }

@@ -484,7 +484,7 @@ mod tests {
         let masses = vec![1.0 / (n * n) as f64; n * n];
         let mut multigrid = Multigrid::new(n, n, families.clone(), &masses, vec![0, n - 1]).unwrap();
         let mut positions = zero_field(n * n);
-        let [px, py, pz] = &mut positions;
+        let [px, py, pz] = positions.arrays_mut();
         for (p, ((x, y), z)) in px.iter_mut().zip(py.iter_mut()).zip(pz.iter_mut()).enumerate() {
             let (i, j) = ((p % n) as f64, (p / n) as f64);
             (*x, *y, *z) = (i * spacing * 1.01, 0.02 * (0.4 * i).sin() * (0.3 * j).cos(), j * spacing * 0.99);
@@ -495,7 +495,7 @@ mod tests {
         system.assemble(&positions, &mass, &families, 1.0, h, None);
         multigrid.assemble(Some(&system), &positions, h, drag);
         let vector = |seed: f64| {
-            let mut field: Field<f64> = std::array::from_fn(|a| wiggle(n * n, seed + a as f64));
+            let mut field = Field::from_arrays(std::array::from_fn(|a| wiggle(n * n, seed + a as f64)));
             for axis in &mut field {
                 (axis[0], axis[n - 1]) = (0.0, 0.0);
             }
@@ -527,8 +527,9 @@ mod tests {
         multigrid.fine().apply(&x, &mut b);
         let mut approximate = zero_field(400);
         multigrid.precondition(&mut b, &mut approximate);
-        let error: Field<f64> =
-            std::array::from_fn(|a| x[a].iter().zip(&approximate[a]).map(|(u, v)| u - v).collect());
+        let error = Field::from_arrays(std::array::from_fn(|a| {
+            x[a].iter().zip(&approximate[a]).map(|(u, v)| u - v).collect()
+        }));
         let mut a_error = zero_field(400);
         multigrid.fine().apply(&error, &mut a_error);
         let reduction = (dot(&error, &a_error) / dot(&x, &b)).sqrt();
