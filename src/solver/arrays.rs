@@ -2,15 +2,15 @@
 //! page.
 //!
 //! A structure-of-arrays loop reads element `p` of many arrays at once: an implicit product
-//! reads a spring's four coupling arrays, three axes of `x` and three of `y` in one pass. Each
-//! large array allocated on its own starts at the same offset within a page as every other,
-//! so element `p` of all of them fall into the same set of every cache level and into the
-//! same memory bank: with more streams than the cache has ways, a pass evicts its own lines.
-//! Laid out here, array `k` starts `k` cache lines further round the page than array 0, so the
-//! streams of one `Arrays` never collide. On the 256² implicit cloth this alone made a step 35 to
-//! 40 % faster on a first-generation Zen (8-way caches), with the same bits.
+//! reads a spring family's four coupling arrays, three axes of `x` and three of `y` in one pass.
+//! Large arrays allocated one by one each get a fresh mapping from the allocator and so all start
+//! at the same offset within a page: element `p` of every array then falls at the same place in
+//! the caches, and a pass over more arrays than a cache set has ways evicts its own lines. Laid
+//! out here, array `k` starts `k` cache lines further round the page than array 0, whatever the
+//! allocator does. On the 256² implicit cloth, in a fresh process, this made a step 35 % faster
+//! on a first-generation Zen with the same bits (`docs/performance.md`).
 //!
-//! Arrays shorter than a page are simply packed, each from a cache line of its own.
+//! Arrays shorter than a page are simply packed, each rounded up to whole cache lines.
 
 use std::ops::{Index, IndexMut};
 
