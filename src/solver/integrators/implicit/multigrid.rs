@@ -10,7 +10,10 @@
 //! fine assembly, where a Galerkin product `Pᵀ A P` would cost several fine products.
 //!
 //! Transfers are bilinear interpolation `P` and its transpose, and a coarse particle is held
-//! fixed when a pinned fine particle takes its value alone. Smoothing is damped block Jacobi,
+//! fixed when a pinned fine particle takes its value alone. Each output row of a transfer is
+//! computed alone from its input rows (a coarse row gathers its fine children), so on a grid
+//! whose products run on the pool's threads the transfers are split over them too, with the same
+//! bits. Smoothing is damped block Jacobi,
 //! one sweep before and one after the coarse correction, and the coarsest level (at most
 //! [`COARSEST_PARTICLES`] particles) is solved exactly by a dense Cholesky factorisation in
 //! `f64`. Pre- and post-smoothing match and the transfers are each other's transposes, so the
@@ -18,6 +21,8 @@
 
 use super::super::super::Real;
 use std::any::Any;
+
+use rayon::prelude::*;
 
 use super::grid_operator::{Family, Field, GridOperator, zero_field};
 
@@ -38,8 +43,6 @@ struct Level<T> {
     rhs: Field<T>,
     solution: Field<T>,
     residual: Field<T>,
-    /// Per-row scratch of the transfers (coarse row length).
-    row: Field<T>,
 }
 
 /// The hierarchy, its transfers and the coarsest level's dense factor.
@@ -72,8 +75,7 @@ impl<T: Real> Multigrid<T> {
             }
             let (cx, cy) = (nx.div_ceil(2), ny.div_ceil(2));
             let mut mass = vec![T::ZERO; cx * cy];
-            let mut row = vec![T::ZERO; cx];
-            restrict_scalar(&fine.base_mass, nx, ny, &mut mass, cx, cy, &mut row);
+            restrict_scalar(&fine.base_mass, nx, ny, &mut mass, cx, cy, false);
             let pinned = coarse_pins(&fine.operator.pinned, nx, cx, cy);
             levels.push(Level::new(cx, cy, &families, mass, pinned));
         }
@@ -167,10 +169,9 @@ impl<T: Real> Multigrid<T> {
             fine.operator.residual(&fine.rhs, &fine.solution, &mut fine.residual);
             let (nx, ny, cx, cy) =
                 (fine.operator.nx, fine.operator.ny, coarse.operator.nx, coarse.operator.ny);
-            for (fine_axis, (coarse_axis, row)) in
-                fine.residual.iter().zip(coarse.rhs.iter_mut().zip(&mut coarse.row))
-            {
-                restrict_scalar(fine_axis, nx, ny, coarse_axis, cx, cy, row);
+            let parallel = fine.operator.is_parallel();
+            for (fine_axis, coarse_axis) in fine.residual.iter().zip(coarse.rhs.iter_mut()) {
+                restrict_scalar(fine_axis, nx, ny, coarse_axis, cx, cy, parallel);
             }
             zero_pinned(&mut coarse.rhs, &coarse.operator.pinned);
         }
@@ -180,12 +181,10 @@ impl<T: Real> Multigrid<T> {
         for l in (0..last).rev() {
             let (finer, coarser) = self.levels.split_at_mut(l + 1);
             let (fine, coarse) = (&mut finer[l], &mut coarser[0]);
-            let (nx, ny, cx, cy) =
-                (fine.operator.nx, fine.operator.ny, coarse.operator.nx, coarse.operator.ny);
-            for (fine_axis, (coarse_axis, row)) in
-                fine.solution.iter_mut().zip(coarse.solution.iter().zip(&mut coarse.row))
-            {
-                prolong_add(coarse_axis, cx, cy, fine_axis, nx, ny, row);
+            let (nx, cx, cy) = (fine.operator.nx, coarse.operator.nx, coarse.operator.ny);
+            let parallel = fine.operator.is_parallel();
+            for (fine_axis, coarse_axis) in fine.solution.iter_mut().zip(coarse.solution.iter()) {
+                prolong_add(coarse_axis, cx, cy, fine_axis, nx, parallel);
             }
             zero_pinned(&mut fine.solution, &fine.operator.pinned);
             fine.operator.smooth(&fine.rhs, &mut fine.solution, &mut fine.residual);
@@ -210,7 +209,6 @@ impl<T: Real> Level<T> {
             rhs: zero_field(n),
             solution: zero_field(n),
             residual: zero_field(n),
-            row: zero_field(nx),
         }
     }
 }
@@ -256,7 +254,26 @@ fn coarse_pins(pinned: &[usize], nx: usize, cx: usize, cy: usize) -> Vec<usize> 
     pins
 }
 
-/// `coarse = Pᵀ fine` for one scalar array, row by row (`row` is scratch of length `cx`).
+/// `rows` of an `n_rows × width` array, cut into pieces of whole rows handed to `piece` with the
+/// index of their first row: on the pool's threads when `parallel`, else in one piece. Each
+/// row is computed alone, so the cut changes no bits.
+fn by_rows<T: Send>(
+    rows: &mut [T],
+    width: usize,
+    parallel: bool,
+    piece: impl Fn(usize, &mut [T]) + Sync + Send,
+) {
+    if !parallel || width == 0 {
+        piece(0, rows);
+        return;
+    }
+    let n_rows = rows.len() / width;
+    let per_piece = n_rows.div_ceil(4 * rayon::current_num_threads()).max(1);
+    rows.par_chunks_mut(per_piece * width).enumerate().for_each(|(k, rows)| piece(k * per_piece, rows));
+}
+
+/// `coarse = Pᵀ fine` for one scalar array. Each coarse row gathers the fine rows whose parent
+/// it is, in their order, so that its sum does not depend on how the rows are split.
 fn restrict_scalar<T: Real>(
     fine: &[T],
     nx: usize,
@@ -264,61 +281,61 @@ fn restrict_scalar<T: Real>(
     coarse: &mut [T],
     cx: usize,
     cy: usize,
-    row: &mut [T],
+    parallel: bool,
 ) {
-    coarse.fill(T::ZERO);
-    let half = T::from_f64(0.5);
-    for j in 0..ny {
-        let f = &fine[j * nx..(j + 1) * nx];
-        for (c, value) in row.iter_mut().enumerate() {
-            let mut sum = f[2 * c];
-            if c > 0 {
-                sum += f[2 * c - 1] * half;
-            }
-            if 2 * c + 1 < nx {
-                sum += f[2 * c + 1] * if c + 1 < cx { half } else { T::ONE };
-            }
-            *value = sum;
-        }
-        for (parent, weight) in parents::<T>(j, cy) {
-            if weight != T::ZERO {
-                for (c, &r) in coarse[parent * cx..(parent + 1) * cx].iter_mut().zip(row.iter()) {
-                    *c += r * weight;
+    by_rows(coarse, cx, parallel, |first, rows| {
+        for (k, out) in rows.chunks_exact_mut(cx).enumerate() {
+            let parent = first + k;
+            out.fill(T::ZERO);
+            for j in (2 * parent).saturating_sub(1)..(2 * parent + 2).min(ny) {
+                for (p, weight) in parents::<T>(j, cy) {
+                    if p == parent && weight != T::ZERO {
+                        restrict_row_add(&fine[j * nx..(j + 1) * nx], out, weight);
+                    }
                 }
             }
         }
+    });
+}
+
+/// `out += weight · (Pᵀ along the row) f` for one fine row `f`.
+#[inline]
+fn restrict_row_add<T: Real>(f: &[T], out: &mut [T], weight: T) {
+    let (nx, cx) = (f.len(), out.len());
+    let half = T::from_f64(0.5);
+    for (c, value) in out.iter_mut().enumerate() {
+        let mut sum = f[2 * c];
+        if c > 0 {
+            sum += f[2 * c - 1] * half;
+        }
+        if 2 * c + 1 < nx {
+            sum += f[2 * c + 1] * if c + 1 < cx { half } else { T::ONE };
+        }
+        *value += sum * weight;
     }
 }
 
-/// `fine += P coarse` for one scalar array, row by row (`row` is scratch of length `cx`).
-fn prolong_add<T: Real>(
-    coarse: &[T],
-    cx: usize,
-    cy: usize,
-    fine: &mut [T],
-    nx: usize,
-    ny: usize,
-    row: &mut [T],
-) {
+/// `fine += P coarse` for one scalar array, each fine row from its parent coarse rows.
+fn prolong_add<T: Real>(coarse: &[T], cx: usize, cy: usize, fine: &mut [T], nx: usize, parallel: bool) {
     let half = T::from_f64(0.5);
-    for j in 0..ny {
-        let [(a, wa), (b, wb)] = parents::<T>(j, cy);
-        let (ra, rb) = (&coarse[a * cx..(a + 1) * cx], &coarse[b * cx..(b + 1) * cx]);
-        for ((r, &ca), &cb) in row.iter_mut().zip(ra).zip(rb) {
-            *r = ca * wa + cb * wb;
+    by_rows(fine, nx, parallel, |first, rows| {
+        for (k, f) in rows.chunks_exact_mut(nx).enumerate() {
+            let [(a, wa), (b, wb)] = parents::<T>(first + k, cy);
+            let (ra, rb) = (&coarse[a * cx..(a + 1) * cx], &coarse[b * cx..(b + 1) * cx]);
+            // The coarse row interpolated between its parents, at coarse column `c`.
+            let row = |c: usize| ra[c] * wa + rb[c] * wb;
+            for (i, value) in f.iter_mut().enumerate() {
+                let c = i / 2;
+                *value += if i % 2 == 0 {
+                    row(c)
+                } else if c + 1 < cx {
+                    (row(c) + row(c + 1)) * half
+                } else {
+                    row(c)
+                };
+            }
         }
-        let f = &mut fine[j * nx..(j + 1) * nx];
-        for (i, value) in f.iter_mut().enumerate() {
-            let c = i / 2;
-            *value += if i % 2 == 0 {
-                row[c]
-            } else if c + 1 < cx {
-                (row[c] + row[c + 1]) * half
-            } else {
-                row[c]
-            };
-        }
-    }
+    });
 }
 
 /// Coarse positions: every other fine particle in both directions.
@@ -450,18 +467,37 @@ mod tests {
         for (nx, ny) in [(7usize, 9usize), (8, 6), (16, 16)] {
             let (cx, cy) = (nx.div_ceil(2), ny.div_ceil(2));
             let (fine, coarse) = (wiggle(nx * ny, 0.3), wiggle(cx * cy, 1.1));
-            let mut row = vec![0.0; cx];
             let mut interpolated = vec![0.0; nx * ny];
-            prolong_add(&coarse, cx, cy, &mut interpolated, nx, ny, &mut row);
+            prolong_add(&coarse, cx, cy, &mut interpolated, nx, false);
             let mut restricted = vec![0.0; cx * cy];
-            restrict_scalar(&fine, nx, ny, &mut restricted, cx, cy, &mut row);
+            restrict_scalar(&fine, nx, ny, &mut restricted, cx, cy, false);
             let left: f64 = interpolated.iter().zip(&fine).map(|(a, b)| a * b).sum();
             let right: f64 = coarse.iter().zip(&restricted).map(|(a, b)| a * b).sum();
             assert!((left - right).abs() <= 1e-12 * left.abs().max(1.0), "{nx}×{ny}: {left} vs {right}");
             // Interpolation reproduces a constant, the extrapolated edge included.
             let mut ones = vec![0.0; nx * ny];
-            prolong_add(&vec![1.0; cx * cy], cx, cy, &mut ones, nx, ny, &mut row);
+            prolong_add(&vec![1.0; cx * cy], cx, cy, &mut ones, nx, false);
             assert!(ones.iter().all(|&v| v == 1.0));
+        }
+    }
+
+    #[test]
+    fn transfers_split_over_threads_give_the_same_bits() {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(3).build().unwrap();
+        for (nx, ny) in [(37usize, 29usize), (40, 40), (9, 64)] {
+            let (cx, cy) = (nx.div_ceil(2), ny.div_ceil(2));
+            let (fine, coarse) = (wiggle(nx * ny, 0.7), wiggle(cx * cy, 2.3));
+            let transfers = |parallel: bool| {
+                let mut restricted = vec![0.0; cx * cy];
+                restrict_scalar(&fine, nx, ny, &mut restricted, cx, cy, parallel);
+                let mut interpolated = fine.clone();
+                prolong_add(&coarse, cx, cy, &mut interpolated, nx, parallel);
+                (restricted, interpolated)
+            };
+            let (alone, split) = (transfers(false), pool.install(|| transfers(true)));
+            let bits = |values: &[f64]| values.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(&alone.0), bits(&split.0), "{nx}×{ny} restriction");
+            assert_eq!(bits(&alone.1), bits(&split.1), "{nx}×{ny} interpolation");
         }
     }
 
