@@ -66,6 +66,8 @@ pub(crate) struct GridOperator<T> {
     pub pinned: Vec<usize>,
     /// Per-row scratch for the right-hand side's spring terms.
     pull: Field<T>,
+    /// Whether products and smoothing are split over the pool's threads.
+    parallel: bool,
 }
 
 /// The smoother's damping `ω`: the block-Jacobi iteration matrix `I - ω D⁻¹ A` has spectral
@@ -74,7 +76,8 @@ pub(crate) struct GridOperator<T> {
 /// and 0.6 takes 16.
 const JACOBI_DAMPING: f64 = 0.9;
 
-/// Grids with at least this many particles apply the operator on several threads.
+/// Grids with at least this many particles apply the operator on several threads (a coarse
+/// level of such a grid may from fewer; see `multigrid`).
 const PARALLEL_PARTICLES: usize = 16_384;
 
 /// Below this squared length a spring has no direction and contributes nothing.
@@ -94,6 +97,7 @@ impl<T: Real> GridOperator<T> {
             smoother: Arrays::zeros(n),
             pinned,
             pull: zero_field(nx),
+            parallel: n >= PARALLEL_PARTICLES,
         }
     }
 
@@ -104,7 +108,12 @@ impl<T: Real> GridOperator<T> {
 
     /// Whether products with this operator are split over threads.
     pub fn is_parallel(&self) -> bool {
-        self.len() >= PARALLEL_PARTICLES
+        self.parallel
+    }
+
+    /// Splits products and smoothing over the pool's threads, or not, whatever the size.
+    pub fn set_parallel(&mut self, parallel: bool) {
+        self.parallel = parallel;
     }
 
     /// Builds `M + h D + h² K` at `positions` (`mass` per particle, already including drag),
@@ -208,7 +217,7 @@ impl<T: Real> GridOperator<T> {
             }
         };
         let [s0, s1, s2, s3, s4, s5] = self.smoother.arrays_mut();
-        if self.nx * self.ny < PARALLEL_PARTICLES {
+        if !self.parallel {
             invert((0, [s0, s1, s2, s3, s4, s5]), 0);
             return;
         }
