@@ -139,3 +139,35 @@ fn an_f64_solve_preconditioned_in_f32_reaches_a_tolerance_far_below_f32s_precisi
     assert!(tight.last_residual <= 1e-11);
     assert!(tight.total_iterations <= 3 * loose.total_iterations, "{tight:?} against {loose:?}");
 }
+
+/// A 128² cloth splits its fine products, its transfers and its 64² level over the threads;
+/// steps in pools of one, two and three threads (so in pieces of different sizes) give the same
+/// bits, in both precisions.
+#[test]
+fn the_grid_solve_gives_the_same_bits_on_any_number_of_threads() {
+    fn steps<T: Real>(threads: usize) -> (Vec<T>, u64) {
+        let (model, drag) = peers_cloth(128);
+        let (mut state, mut dynamics) = start::<T>(&model, drag);
+        let mut implicit = Implicit::new(&dynamics, settings(1e-6, 200));
+        assert!(matches!(implicit.solver, Solver::Grid(_)));
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+        pool.install(|| {
+            for _ in 0..3 {
+                implicit.step(&mut state, &mut dynamics, 0.0, T::from_f64(H));
+            }
+        });
+        let positions = state.positions.axes().iter().flat_map(|axis| axis.iter().copied()).collect();
+        (positions, implicit.stats().total_iterations)
+    }
+    fn check<T: Real>() {
+        let (one, iterations) = steps::<T>(1);
+        assert!(iterations >= 3);
+        for threads in [2, 3] {
+            let (many, _) = steps::<T>(threads);
+            let same = one.iter().zip(&many).all(|(a, b)| a.to_f64().to_bits() == b.to_f64().to_bits());
+            assert!(same, "{} on {threads} threads differs from one thread", T::NAME);
+        }
+    }
+    check::<f32>();
+    check::<f64>();
+}
