@@ -5,7 +5,7 @@
 //! reads a spring family's four coupling arrays, three axes of `x` and three of `y` in one pass.
 //! Large arrays allocated one by one each get a fresh mapping from the allocator and so all start
 //! at the same offset within a page: element `p` of every array then falls at the same place in
-//! the caches, and a pass over more arrays than a cache set has ways evicts its own lines. Laid
+//! the caches, and a pass over more arrays than a cache set has ways can evict its own lines. Laid
 //! out here, array `k` starts `k` cache lines further round the page than array 0, whatever the
 //! allocator does. On the 256² implicit cloth, in a fresh process, this made a step 35 % faster
 //! on a first-generation Zen with the same bits (`docs/performance.md`).

@@ -13,11 +13,11 @@
 //! fixed when a pinned fine particle takes its value alone. Each output row of a transfer is
 //! computed alone from its input rows (a coarse row gathers its fine children), so on a grid
 //! whose products run on the pool's threads the transfers are split over them too, with the same
-//! bits. Smoothing is damped block Jacobi,
-//! one sweep before and one after the coarse correction, and the coarsest level (at most
-//! [`COARSEST_PARTICLES`] particles) is solved exactly by a dense Cholesky factorisation in
-//! `f64`. Pre- and post-smoothing match and the transfers are each other's transposes, so the
-//! cycle is a symmetric positive definite operator, as conjugate gradients needs.
+//! bits. Smoothing is damped block Jacobi, one sweep before and one after the coarse correction,
+//! and the coarsest level (at most [`COARSEST_PARTICLES`] particles) is solved exactly by a dense
+//! Cholesky factorisation in `f64`. Pre- and post-smoothing match and the transfers are each
+//! other's transposes, so the cycle is a symmetric positive definite operator, as conjugate
+//! gradients needs.
 
 use super::super::super::Real;
 use std::any::Any;
