@@ -206,11 +206,11 @@ impl<T: Real> GridOperator<T> {
     /// `ω D⁻¹` from the diagonal blocks.
     fn update_smoother(&mut self) {
         let omega = T::from_f64(JACOBI_DAMPING);
-        let diagonal = &self.diagonal;
+        let diagonal = self.diagonal.arrays();
         let invert = |(k, mut s): (usize, [&mut [T]; 6]), piece: usize| {
             for m in 0..s[0].len() {
                 let p = k * piece + m;
-                let block = Sym3::from_entries(diagonal.arrays().map(|a| a[p]));
+                let block = Sym3::from_entries(diagonal.map(|a| a[p]));
                 for (s, e) in s.iter_mut().zip((block.inverse() * omega).entries()) {
                     s[m] = e;
                 }
