@@ -1,16 +1,21 @@
-//! `K` arrays of one length in one allocation, each starting on a different cache line of the
-//! page.
+//! `K` arrays of one length in one allocation, each starting on its own cache line.
 //!
 //! A structure-of-arrays loop reads element `p` of many arrays at once: an implicit product
 //! reads a spring family's four coupling arrays, three axes of `x` and three of `y` in one pass.
-//! Large arrays allocated one by one each get a fresh mapping from the allocator and so all start
-//! at the same offset within a page: element `p` of every array then falls at the same place in
-//! the caches, and a pass over more arrays than a cache set has ways can evict its own lines. Laid
-//! out here, array `k` starts `k` cache lines further round the page than array 0, whatever the
-//! allocator does. On the 256² implicit cloth, in a fresh process, this made a step 35 % faster
-//! on a first-generation Zen with the same bits (`docs/performance.md`).
+//! Two things about where those arrays lie cost time:
 //!
-//! Arrays shorter than a page are simply packed, each rounded up to whole cache lines.
+//! - **Alignment.** The allocator's large blocks start 16 bytes into a page, so every other
+//!   32-byte vector load of an `f32` array so placed straddles two cache lines and costs two.
+//!   Here every array starts on a cache line. On the 256² implicit cloth this made the operator's
+//!   product 20 % faster on a Zen 3 (`docs/performance.md`).
+//! - **Sets.** Large arrays allocated one by one each get a fresh mapping and so all start at the
+//!   same offset within a page: element `p` of every array then falls at the same place in the
+//!   caches, and a pass over more arrays than a cache set has ways can evict its own lines. Here
+//!   array `k` starts `k` cache lines further round the page than array 0. In a fresh process this
+//!   made a 256² implicit step 35 % faster on a first-generation Zen.
+//!
+//! Arrays shorter than a page are simply packed, each rounded up to whole cache lines. The layout
+//! changes no arithmetic, so no result.
 
 use std::ops::{Index, IndexMut};
 
@@ -21,9 +26,11 @@ const LINE_BYTES: usize = 64;
 const PAGE_BYTES: usize = 4096;
 
 /// `K` arrays of `len` elements (see the module docs).
-#[derive(Clone, Debug)]
+#[derive(Debug)]
 pub struct Arrays<T, const K: usize> {
+    /// The arrays, after `start` elements that bring array 0 to a cache line.
     data: Vec<T>,
+    start: usize,
     len: usize,
     /// Elements from the start of one array to the start of the next.
     stride: usize,
@@ -35,7 +42,11 @@ impl<T: Real, const K: usize> Arrays<T, K> {
         let size = std::mem::size_of::<T>();
         let (line, page) = (LINE_BYTES / size, PAGE_BYTES / size);
         let stride = if len >= page { len.next_multiple_of(page) + line } else { len.next_multiple_of(line) };
-        Self { data: vec![T::ZERO; stride * K], len, stride }
+        // A line's worth of slack: the block itself is aligned only to `T`.
+        let data = vec![T::ZERO; stride * K + line];
+        let address = data.as_ptr() as usize;
+        let start = (address.next_multiple_of(LINE_BYTES) - address) / size;
+        Self { data, start, len, stride }
     }
 
     /// The arrays `arrays`, which have one length, laid out as described in the module docs.
@@ -69,7 +80,7 @@ impl<T: Real, const K: usize> Arrays<T, K> {
     #[inline]
     pub fn arrays_mut(&mut self) -> [&mut [T]; K] {
         let (len, stride) = (self.len, self.stride);
-        let mut chunks = self.data.chunks_exact_mut(stride.max(1));
+        let mut chunks = self.data[self.start..].chunks_exact_mut(stride.max(1));
         std::array::from_fn(|_| match chunks.next() {
             Some(chunk) => &mut chunk[..len],
             None => &mut [],
@@ -87,13 +98,25 @@ impl<T: Real, const K: usize> Arrays<T, K> {
     }
 }
 
+/// A clone is laid out afresh: its block may sit differently from the original's.
+impl<T: Real, const K: usize> Clone for Arrays<T, K> {
+    fn clone(&self) -> Self {
+        let mut copy = Self::zeros(self.len);
+        for (to, from) in copy.iter_mut().zip(self) {
+            to.copy_from_slice(from);
+        }
+        copy
+    }
+}
+
 impl<T, const K: usize> Index<usize> for Arrays<T, K> {
     type Output = [T];
 
     #[inline(always)]
     fn index(&self, k: usize) -> &[T] {
         assert!(k < K, "array {k} of {K}");
-        &self.data[k * self.stride..k * self.stride + self.len]
+        let first = self.start + k * self.stride;
+        &self.data[first..first + self.len]
     }
 }
 
@@ -101,7 +124,8 @@ impl<T, const K: usize> IndexMut<usize> for Arrays<T, K> {
     #[inline(always)]
     fn index_mut(&mut self, k: usize) -> &mut [T] {
         assert!(k < K, "array {k} of {K}");
-        &mut self.data[k * self.stride..k * self.stride + self.len]
+        let first = self.start + k * self.stride;
+        &mut self.data[first..first + self.len]
     }
 }
 
@@ -129,8 +153,21 @@ mod tests {
 
     /// Where array `k`'s element `p` lies within its page, in cache lines.
     fn line_in_page<const K: usize>(arrays: &Arrays<f32, K>, k: usize, p: usize) -> usize {
-        let address = arrays[k][p..].as_ptr() as usize - arrays.data.as_ptr() as usize;
-        address % PAGE_BYTES / LINE_BYTES
+        arrays[k][p..].as_ptr() as usize % PAGE_BYTES / LINE_BYTES
+    }
+
+    #[test]
+    fn every_array_starts_on_a_cache_line_and_so_does_every_clone() {
+        for len in [1, 7, 100, 1024, 4096, 65_536, 16_641] {
+            let arrays = Arrays::<f32, 4>::zeros(len);
+            let copy = Arrays::<f64, 3>::from_arrays(std::array::from_fn(|k| vec![k as f64; len])).clone();
+            let starts =
+                arrays.iter().map(|a| a.as_ptr() as usize).chain(copy.iter().map(|a| a.as_ptr() as usize));
+            for address in starts {
+                assert_eq!(address % LINE_BYTES, 0, "len {len}");
+            }
+            assert!(copy.iter().enumerate().all(|(k, a)| a.len() == len && a.iter().all(|&v| v == k as f64)));
+        }
     }
 
     #[test]
