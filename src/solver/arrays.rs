@@ -98,14 +98,28 @@ impl<T: Real, const K: usize> Arrays<T, K> {
     }
 }
 
-/// A clone is laid out afresh: its block may sit differently from the original's.
-impl<T: Real, const K: usize> Clone for Arrays<T, K> {
+/// A clone's block may sit differently from the original's: its arrays are moved to start on a
+/// cache line again.
+impl<T: Clone, const K: usize> Clone for Arrays<T, K> {
     fn clone(&self) -> Self {
-        let mut copy = Self::zeros(self.len);
-        for (to, from) in copy.iter_mut().zip(self) {
-            to.copy_from_slice(from);
+        let mut data = self.data.clone();
+        let (size, address) = (std::mem::size_of::<T>(), data.as_ptr() as usize);
+        let start = (address.next_multiple_of(LINE_BYTES) - address) / size.max(1);
+        // The slack before and after the arrays is one line in all, so either rotation only moves
+        // slack round the ends.
+        if start > self.start {
+            data.rotate_right(start - self.start);
+        } else {
+            data.rotate_left(self.start - start);
         }
-        copy
+        Self { data, start, len: self.len, stride: self.stride }
+    }
+}
+
+/// No arrays' worth of elements: every array empty.
+impl<T, const K: usize> Default for Arrays<T, K> {
+    fn default() -> Self {
+        Self { data: Vec::new(), start: 0, len: 0, stride: 0 }
     }
 }
 

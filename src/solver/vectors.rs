@@ -3,53 +3,60 @@
 //! Every per-particle quantity that a step sweeps over (positions, velocities, forces, an
 //! integrator's scratch) is a [`Vectors`]. Loops over one axis at a time read consecutive scalars,
 //! which the compiler turns into full-width vector instructions, and a row of a cloth is a
-//! contiguous run in each axis. Code that works one particle at a time uses [`Vectors::get`] and
-//! [`Vectors::set`].
+//! contiguous run in each axis. The axes lie in one [`Arrays`] block, each starting on a cache
+//! line. Code that works one particle at a time uses [`Vectors::get`] and [`Vectors::set`].
 
+use super::arrays::Arrays;
 use super::{Real, Vec3};
 
 /// `len` 3-vectors, stored as three arrays of equal length (x, y, z).
-#[derive(Clone, Debug, Default, PartialEq)]
+#[derive(Clone, Debug, Default)]
 pub struct Vectors<T> {
-    axes: [Vec<T>; 3],
+    axes: Arrays<T, 3>,
+}
+
+impl<T: Real> PartialEq for Vectors<T> {
+    fn eq(&self, other: &Self) -> bool {
+        self.axes() == other.axes()
+    }
 }
 
 impl<T: Real> Vectors<T> {
     /// `len` zero vectors.
     pub fn zeros(len: usize) -> Self {
-        Self { axes: std::array::from_fn(|_| vec![T::ZERO; len]) }
+        Self { axes: Arrays::zeros(len) }
     }
 
     /// The number of vectors.
     #[inline]
     pub fn len(&self) -> usize {
-        self.axes[0].len()
+        self.axes.len()
     }
 
     /// Whether there are no vectors.
     #[inline]
     pub fn is_empty(&self) -> bool {
-        self.axes[0].is_empty()
+        self.axes.is_empty()
     }
 
     /// Vector `i`.
     #[inline(always)]
     pub fn get(&self, i: usize) -> Vec3<T> {
-        let [x, y, z] = &self.axes;
+        let [x, y, z] = self.axes.arrays();
         Vec3::new(x[i], y[i], z[i])
     }
 
     /// Sets vector `i`.
     #[inline(always)]
     pub fn set(&mut self, i: usize, v: Vec3<T>) {
-        let [x, y, z] = &mut self.axes;
+        let [x, y, z] = self.axes.arrays_mut();
         (x[i], y[i], z[i]) = (v.x, v.y, v.z);
     }
 
     /// Adds `v` to vector `i`.
     #[inline(always)]
     pub fn add(&mut self, i: usize, v: Vec3<T>) {
-        let [x, y, z] = &mut self.axes;
+        let [x, y, z] = self.axes.arrays_mut();
         x[i] += v.x;
         y[i] += v.y;
         z[i] += v.z;
@@ -58,7 +65,7 @@ impl<T: Real> Vectors<T> {
     /// Subtracts `v` from vector `i`.
     #[inline(always)]
     pub fn sub(&mut self, i: usize, v: Vec3<T>) {
-        let [x, y, z] = &mut self.axes;
+        let [x, y, z] = self.axes.arrays_mut();
         x[i] -= v.x;
         y[i] -= v.y;
         z[i] -= v.z;
@@ -84,13 +91,13 @@ impl<T: Real> Vectors<T> {
     /// The three axes.
     #[inline]
     pub fn axes(&self) -> [&[T]; 3] {
-        self.axes.each_ref().map(Vec::as_slice)
+        self.axes.arrays()
     }
 
     /// The three axes, to write.
     #[inline]
     pub fn axes_mut(&mut self) -> [&mut [T]; 3] {
-        self.axes.each_mut().map(Vec::as_mut_slice)
+        self.axes.arrays_mut()
     }
 
     /// Sets every vector to `v`.
@@ -102,7 +109,7 @@ impl<T: Real> Vectors<T> {
 
     /// Copies `other`, which has the same length.
     pub fn copy_from(&mut self, other: &Self) {
-        for (axis, source) in self.axes.iter_mut().zip(&other.axes) {
+        for (axis, source) in self.axes.iter_mut().zip(other.axes.iter()) {
             axis.copy_from_slice(source);
         }
     }
@@ -110,31 +117,25 @@ impl<T: Real> Vectors<T> {
     /// The vectors in `range`, as three slices.
     #[inline]
     pub fn range(&self, range: std::ops::Range<usize>) -> [&[T]; 3] {
-        self.axes.each_ref().map(|axis| &axis[range.clone()])
+        self.axes.arrays().map(|axis| &axis[range.clone()])
     }
 
     /// The vectors in `range`, as three slices to write.
     #[inline]
     pub fn range_mut(&mut self, range: std::ops::Range<usize>) -> [&mut [T]; 3] {
-        self.axes.each_mut().map(|axis| &mut axis[range.clone()])
-    }
-}
-
-impl<T: Real> Extend<Vec3<T>> for Vectors<T> {
-    fn extend<I: IntoIterator<Item = Vec3<T>>>(&mut self, iter: I) {
-        for v in iter {
-            for (axis, value) in self.axes.iter_mut().zip(v.to_array()) {
-                axis.push(value);
-            }
-        }
+        self.axes.arrays_mut().map(|axis| &mut axis[range.clone()])
     }
 }
 
 impl<T: Real> FromIterator<Vec3<T>> for Vectors<T> {
     fn from_iter<I: IntoIterator<Item = Vec3<T>>>(iter: I) -> Self {
-        let mut vectors = Self::default();
-        vectors.extend(iter);
-        vectors
+        let mut axes: [Vec<T>; 3] = Default::default();
+        for v in iter {
+            for (axis, value) in axes.iter_mut().zip(v.to_array()) {
+                axis.push(value);
+            }
+        }
+        Self { axes: Arrays::from_arrays(axes) }
     }
 }
 

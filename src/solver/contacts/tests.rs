@@ -128,7 +128,10 @@ fn scatter(count: usize) -> (Vectors<f64>, Vectors<f64>) {
         seed ^= seed << 17;
         (seed >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
     };
-    (0..count).map(|_| (Vec3::new(next(), next(), next()), Vec3::new(next(), next(), next()) * 3.0)).unzip()
+    let (points, velocities): (Vec<_>, Vec<_>) = (0..count)
+        .map(|_| (Vec3::new(next(), next(), next()), Vec3::new(next(), next(), next()) * 3.0))
+        .unzip();
+    (points.into_iter().collect(), velocities.into_iter().collect())
 }
 
 #[test]
