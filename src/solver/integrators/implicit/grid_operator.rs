@@ -42,10 +42,12 @@ pub(crate) struct Family<T> {
 }
 
 /// What the fine level adds to an assembly: the velocities and the right-hand side to which
-/// each spring adds `∓h² K (v_i - v_j)`.
+/// each spring adds `∓h² K (v_i - v_j)`, with a field per family (`pull`) to hold those terms
+/// between the assembly's two passes.
 pub(crate) struct RightHandSide<'a, T> {
     pub velocities: &'a Field<T>,
     pub rhs: &'a mut Field<T>,
+    pub pull: &'a mut [Field<T>],
 }
 
 /// A symmetric block stencil operator on an `nx × ny` grid, with its block-Jacobi smoother.
@@ -64,8 +66,6 @@ pub(crate) struct GridOperator<T> {
     smoother: Arrays<T, 6>,
     /// Particles held fixed: their rows and columns are decoupled (only the mass on the diagonal).
     pub pinned: Vec<usize>,
-    /// Per-row scratch for the right-hand side's spring terms.
-    pull: Field<T>,
     /// Whether products and smoothing are split over the pool's threads.
     parallel: bool,
 }
@@ -96,7 +96,6 @@ impl<T: Real> GridOperator<T> {
             diagonal: Arrays::zeros(n),
             smoother: Arrays::zeros(n),
             pinned,
-            pull: zero_field(nx),
             parallel: n >= PARALLEL_PARTICLES,
         }
     }
@@ -119,6 +118,12 @@ impl<T: Real> GridOperator<T> {
     /// Builds `M + h D + h² K` at `positions` (`mass` per particle, already including drag),
     /// with spring rest lengths scaled by `rest_scale`, and the smoother. With `rhs`, also adds
     /// `-h² K v` to the right-hand side.
+    ///
+    /// Two passes over the rows, each split over the pool's threads on a parallel operator: the
+    /// first computes every spring's coupling (and its right-hand-side term) at its lower end; the
+    /// second gathers into each particle's diagonal block (and right-hand side) the springs at
+    /// both its ends, family by family, in one fixed order. Every row is computed alone, so the
+    /// bits do not depend on the split.
     pub fn assemble(
         &mut self,
         positions: &Field<T>,
@@ -129,63 +134,99 @@ impl<T: Real> GridOperator<T> {
         mut rhs: Option<RightHandSide<'_, T>>,
     ) {
         let (nx, ny) = (self.nx, self.ny);
-        let [dxx, dyy, dzz, dxy, dxz, dyz] = self.diagonal.arrays_mut();
-        for (p, &m) in mass.iter().enumerate() {
-            (dxx[p], dyy[p], dzz[p]) = (m, m, m);
-            (dxy[p], dxz[p], dyz[p]) = (T::ZERO, T::ZERO, T::ZERO);
-        }
+        let band = self.band_rows();
         for (slot, family) in families.iter().enumerate() {
-            let [di, dj] = family.offset;
-            let (i0, i1) = (0.max(-di) as usize, (nx as isize).min(nx as isize - di).max(0) as usize);
-            if i1 <= i0 || dj as usize >= ny {
-                continue;
-            }
-            let len = i1 - i0;
-            let shift = dj * nx as isize + di;
+            let Some(Span { dj, i0, len, shift }) = Span::of(family.offset, nx, ny) else { continue };
             let spring = SpringCoefficients {
                 rest_length: family.rest_length * rest_scale,
                 h_damping: h * family.damping,
                 h2_stiffness: h * h * family.stiffness,
             };
-            for j in 0..ny - dj as usize {
+            // The springs of row `j` (global) whose lower ends start at `local` in the band.
+            let ends = |j: usize, local: usize| {
                 let p = j * nx + i0;
                 let q = (p as isize + shift) as usize;
-                let xp = positions.arrays().map(|a| &a[p..p + len]);
-                let xq = positions.arrays().map(|a| &a[q..q + len]);
-                let coupling = self.couplings[slot].arrays_mut().map(|a| &mut a[p..p + len]);
-                match rhs.as_mut() {
-                    Some(RightHandSide { velocities, rhs }) => {
-                        let vp = velocities.arrays().map(|a| &a[p..p + len]);
-                        let vq = velocities.arrays().map(|a| &a[q..q + len]);
-                        let pull = self.pull.arrays_mut().map(|a| &mut a[..len]);
-                        spring_row::<T, true>(&spring, xp, xq, coupling, Some((vp, vq, pull)));
-                        for (axis, pull) in rhs.iter_mut().zip(&self.pull) {
-                            sub_assign(&mut axis[p..p + len], &pull[..len]);
-                            add_assign(&mut axis[q..q + len], &pull[..len]);
+                let lower = positions.arrays().map(|a| &a[p..p + len]);
+                let upper = positions.arrays().map(|a| &a[q..q + len]);
+                (p, q, local + i0, lower, upper)
+            };
+            let coupling = self.couplings[slot].arrays_mut();
+            match rhs.as_mut() {
+                Some(RightHandSide { velocities, pull, .. }) => {
+                    let rows = (coupling, pull[slot].arrays_mut());
+                    in_bands(rows, ny, nx, band, &|first, count, (mut coupling, mut pull)| {
+                        for j in first..(first + count).min(ny - dj) {
+                            let (p, q, at, xp, xq) = ends(j, (j - first) * nx);
+                            let vp = velocities.arrays().map(|a| &a[p..p + len]);
+                            let vq = velocities.arrays().map(|a| &a[q..q + len]);
+                            let c = coupling.each_mut().map(|a| &mut a[at..at + len]);
+                            let pull = pull.each_mut().map(|a| &mut a[at..at + len]);
+                            spring_row::<T, true>(&spring, xp, xq, c, Some((vp, vq, pull)));
                         }
-                    }
-                    None => spring_row::<T, false>(&spring, xp, xq, coupling, None),
+                    });
                 }
+                None => in_bands(coupling, ny, nx, band, &|first, count, mut coupling| {
+                    for j in first..(first + count).min(ny - dj) {
+                        let (_, _, at, xp, xq) = ends(j, (j - first) * nx);
+                        let c = coupling.each_mut().map(|a| &mut a[at..at + len]);
+                        spring_row::<T, false>(&spring, xp, xq, c, None);
+                    }
+                }),
             }
         }
-        // The diagonal is the mass plus every spring block at the particle.
-        for (slot, &[di, dj]) in self.offsets.iter().enumerate() {
-            let (i0, i1) = (0.max(-di) as usize, (nx as isize).min(nx as isize - di).max(0) as usize);
-            if i1 <= i0 || dj as usize >= ny {
-                continue;
+        // Each particle's diagonal block is its mass plus the blocks of the springs at both its
+        // ends; its right-hand side loses the term of a spring at its lower end and gains that
+        // of one at its upper end. Family by family, a particle takes the spring of the row
+        // before first, and of a same-row family the spring at its lower end first.
+        let (offsets, couplings) = (&self.offsets, &self.couplings);
+        let spans = || offsets.iter().map(|&offset| Span::of(offset, nx, ny));
+        let gather_diagonal = |first: usize, count: usize, mut diagonal: [&mut [T]; 6]| {
+            for j in first..first + count {
+                let local = (j - first) * nx;
+                let [dxx, dyy, dzz, dxy, dxz, dyz] = diagonal.each_mut().map(|a| &mut a[local..local + nx]);
+                for (p, &m) in mass[j * nx..(j + 1) * nx].iter().enumerate() {
+                    (dxx[p], dyy[p], dzz[p]) = (m, m, m);
+                    (dxy[p], dxz[p], dyz[p]) = (T::ZERO, T::ZERO, T::ZERO);
+                }
+                for (span, coupling) in spans().zip(couplings) {
+                    let Some(span) = span else { continue };
+                    for (at, from, _) in span.ends_in_row(j, nx, ny) {
+                        let d = diagonal.each_mut().map(|a| &mut a[local + at..local + at + span.len]);
+                        add_spring_blocks(d, coupling.arrays().map(|a| &a[from..from + span.len]));
+                    }
+                }
             }
-            let len = i1 - i0;
-            let shift = dj * nx as isize + di;
-            for j in 0..ny - dj as usize {
-                let p = j * nx + i0;
-                let q = (p as isize + shift) as usize;
-                let c = self.couplings[slot].arrays().map(|a| &a[p..p + len]);
-                add_spring_blocks(self.diagonal.arrays_mut().map(|a| &mut a[p..p + len]), c);
-                add_spring_blocks(self.diagonal.arrays_mut().map(|a| &mut a[q..q + len]), c);
+        };
+        match rhs {
+            Some(RightHandSide { rhs, pull, .. }) => {
+                let rows = (self.diagonal.arrays_mut(), rhs.arrays_mut());
+                in_bands(rows, ny, nx, band, &|first, count, (diagonal, mut rhs)| {
+                    gather_diagonal(first, count, diagonal);
+                    for j in first..first + count {
+                        let local = (j - first) * nx;
+                        for (span, pull) in spans().zip(pull.iter()) {
+                            let Some(span) = span else { continue };
+                            for (at, from, lower) in span.ends_in_row(j, nx, ny) {
+                                let at = local + at..local + at + span.len;
+                                for (r, pull) in rhs.iter_mut().zip(pull) {
+                                    let (r, pull) = (&mut r[at.clone()], &pull[from..from + span.len]);
+                                    if lower { sub_assign(r, pull) } else { add_assign(r, pull) }
+                                }
+                            }
+                        }
+                    }
+                });
             }
+            None => in_bands(self.diagonal.arrays_mut(), ny, nx, band, &gather_diagonal),
         }
         self.decouple_pinned(mass);
         self.update_smoother();
+    }
+
+    /// Rows per band when the operator's work is split over the pool's threads: all of them on a
+    /// serial operator.
+    fn band_rows(&self) -> usize {
+        if self.parallel { self.ny.div_ceil(4 * rayon::current_num_threads()).max(1) } else { self.ny }
     }
 
     /// This operator as a copy of `source` (the same grid and families) rounded to `T`, with its
@@ -396,6 +437,95 @@ impl<T: Real> GridOperator<T> {
     pub fn offsets(&self) -> &[[isize; 2]] {
         &self.offsets
     }
+}
+
+/// Where a family's springs lie on the grid: rows `0..ny - dj`, columns `i0..i0 + len` of their
+/// lower ends, the upper end `shift` particles after the lower.
+#[derive(Clone, Copy)]
+struct Span {
+    dj: usize,
+    i0: usize,
+    len: usize,
+    shift: isize,
+}
+
+impl Span {
+    /// The span of the family of `offset`, or `None` if it has no spring on this grid.
+    fn of([di, dj]: [isize; 2], nx: usize, ny: usize) -> Option<Self> {
+        let (i0, i1) = (0.max(-di) as usize, (nx as isize).min(nx as isize - di).max(0) as usize);
+        (i1 > i0 && (dj as usize) < ny).then(|| Self {
+            dj: dj as usize,
+            i0,
+            len: i1 - i0,
+            shift: dj * nx as isize + di,
+        })
+    }
+
+    /// The runs of springs with an end on row `j`, in the order a particle takes them: per run,
+    /// the first column of those ends on the row, the index of the first spring's lower end, and
+    /// whether the ends on the row are the lower ones. The springs from the row before come
+    /// first; on a same-row family the particle's spring to the next comes first.
+    fn ends_in_row(self, j: usize, nx: usize, ny: usize) -> impl Iterator<Item = (usize, usize, bool)> {
+        let lower = (j + self.dj < ny).then_some((self.i0, j * nx + self.i0, true));
+        let upper = (j >= self.dj).then(|| {
+            let from = ((j - self.dj) * nx + self.i0) as isize;
+            ((from + self.shift) as usize - j * nx, from as usize, false)
+        });
+        let (first, second) = if self.dj > 0 { (upper, lower) } else { (lower, upper) };
+        first.into_iter().chain(second)
+    }
+}
+
+/// Mutable row-major arrays of one grid's rows, which can be cut between rows.
+trait Rows: Send + Sized {
+    /// The first `at` elements of each array, and the rest.
+    fn split_at(self, at: usize) -> (Self, Self);
+}
+
+impl<T: Send, const K: usize> Rows for [&mut [T]; K] {
+    fn split_at(self, at: usize) -> (Self, Self) {
+        let mut halves = self.map(|a| a.split_at_mut(at));
+        let front = halves.each_mut().map(|(front, _)| std::mem::take(front));
+        (front, halves.map(|(_, back)| back))
+    }
+}
+
+impl<A: Rows, B: Rows> Rows for (A, B) {
+    fn split_at(self, at: usize) -> (Self, Self) {
+        let ((a0, a1), (b0, b1)) = (self.0.split_at(at), self.1.split_at(at));
+        ((a0, b0), (a1, b1))
+    }
+}
+
+/// Calls `work(first, count, rows)` on bands of at most `band` rows of `rows` (`n_rows` rows of
+/// `width`), halving the rows between the pool's threads until a band is that small.
+fn in_bands<R: Rows>(
+    rows: R,
+    n_rows: usize,
+    width: usize,
+    band: usize,
+    work: &(impl Fn(usize, usize, R) + Sync),
+) {
+    fn split<R: Rows>(
+        rows: R,
+        first: usize,
+        count: usize,
+        width: usize,
+        band: usize,
+        work: &(impl Fn(usize, usize, R) + Sync),
+    ) {
+        if count <= band {
+            work(first, count, rows);
+            return;
+        }
+        let half = count / 2;
+        let (front, back) = rows.split_at(half * width);
+        rayon::join(
+            || split(front, first, half, width, band, work),
+            || split(back, first + half, count - half, width, band, work),
+        );
+    }
+    split(rows, 0, n_rows, width, band, work);
 }
 
 /// One family's coefficients in the step's units.

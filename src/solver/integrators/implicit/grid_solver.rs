@@ -39,6 +39,8 @@ pub(crate) struct GridSolver<T> {
     multigrid: Multigrid<f32>,
     pinned: Vec<usize>,
     rhs: Field<T>,
+    /// Per family, each spring's right-hand-side term, between the assembly's two passes.
+    pull: Vec<Field<T>>,
     /// The solution `Δv`, kept as the next step's starting guess.
     delta_v: Field<T>,
     residual: Field<T>,
@@ -117,6 +119,7 @@ impl<T: Real> GridSolver<T> {
         }
         Some(Self {
             system,
+            pull: families.iter().map(|_| zero_field(n)).collect(),
             families,
             base_mass: dynamics.masses.clone(),
             mass: dynamics.masses.clone(),
@@ -171,7 +174,7 @@ impl<T: Real> GridSolver<T> {
         for (m, &base) in self.mass.iter_mut().zip(&self.base_mass) {
             *m = base * scale;
         }
-        let rhs = RightHandSide { velocities: input.velocities, rhs: &mut self.rhs };
+        let rhs = RightHandSide { velocities: input.velocities, rhs: &mut self.rhs, pull: &mut self.pull };
         let system = match &mut self.system {
             Some(system) => system,
             None => shared(self.multigrid.fine_mut()),
