@@ -102,6 +102,9 @@ impl<T: Real, const K: usize> Arrays<T, K> {
 /// cache line again.
 impl<T: Clone, const K: usize> Clone for Arrays<T, K> {
     fn clone(&self) -> Self {
+        if self.data.is_empty() {
+            return Self::default();
+        }
         let mut data = self.data.clone();
         let (size, address) = (std::mem::size_of::<T>(), data.as_ptr() as usize);
         let start = (address.next_multiple_of(LINE_BYTES) - address) / size.max(1);
@@ -182,6 +185,8 @@ mod tests {
             }
             assert!(copy.iter().enumerate().all(|(k, a)| a.len() == len && a.iter().all(|&v| v == k as f64)));
         }
+        let empty = Arrays::<f32, 3>::default().clone();
+        assert!(empty.iter().all(<[f32]>::is_empty));
     }
 
     #[test]
