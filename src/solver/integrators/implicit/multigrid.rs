@@ -29,11 +29,6 @@ use super::grid_operator::{Family, Field, GridOperator, zero_field};
 /// The coarsest level has at most this many particles and is solved directly.
 pub(crate) const COARSEST_PARTICLES: usize = 16;
 
-/// When the fine level runs on the pool's threads, coarse levels of at least this many
-/// particles do too: the solve is then already on the pool, so a split costs little. (A whole
-/// solve of this size is faster on one thread: the 64² cloth ran 4 to 9 % slower split.)
-const PARALLEL_COARSE_PARTICLES: usize = 4096;
-
 /// One level of the hierarchy with its vectors.
 #[derive(Debug)]
 struct Level<T> {
@@ -83,11 +78,6 @@ impl<T: Real> Multigrid<T> {
             restrict_scalar(&fine.base_mass, nx, ny, &mut mass, cx, cy, false);
             let pinned = coarse_pins(&fine.operator.pinned, nx, cx, cy);
             levels.push(Level::new(cx, cy, &families, mass, pinned));
-        }
-        let parallel = levels[0].operator.is_parallel();
-        for level in &mut levels[1..] {
-            let large = level.operator.len() >= PARALLEL_COARSE_PARTICLES;
-            level.operator.set_parallel(parallel && large);
         }
         let last = levels.last()?;
         let coarsest = DenseCholesky::new(last.operator.len());
