@@ -5,7 +5,8 @@
 //! (see [`spring_runs`](super::spring_runs)). Each band recomputes the few rows of springs it
 //! shares with its neighbours instead of exchanging partial sums, so every particle's force is
 //! summed in the same order whatever the number of bands: a result does not depend on how many
-//! threads computed it. A scene too small to pay for the hand-off stays in one band.
+//! threads computed it. A scene too small to pay for the hand-off stays in one band. Passes that
+//! compute each row alone (the implicit solver's) cut their row-major arrays with [`in_bands`].
 //!
 //! A run should execute inside the pool ([`install`]), so that handing a band to the other
 //! threads is a push onto a work-stealing deque rather than a wake-up. When every pool thread is
@@ -51,4 +52,57 @@ pub fn band_count(rows: usize, particles: usize, min_rows: usize) -> usize {
     let by_size = particles / MIN_PARTICLES_PER_BAND;
     let by_rows = rows / min_rows.max(1);
     threads.min(by_size).min(by_rows).max(1)
+}
+
+/// Mutable row-major arrays of one grid's rows (each a slice, or a pair of such), which can be
+/// cut between rows.
+pub(crate) trait Rows: Send + Sized {
+    /// The first `at` elements of each array, and the rest.
+    fn split_at(self, at: usize) -> (Self, Self);
+}
+
+impl<T: Send, const K: usize> Rows for [&mut [T]; K] {
+    fn split_at(self, at: usize) -> (Self, Self) {
+        let mut halves = self.map(|a| a.split_at_mut(at));
+        let front = halves.each_mut().map(|(front, _)| std::mem::take(front));
+        (front, halves.map(|(_, back)| back))
+    }
+}
+
+impl<A: Rows, B: Rows> Rows for (A, B) {
+    fn split_at(self, at: usize) -> (Self, Self) {
+        let ((a0, a1), (b0, b1)) = (self.0.split_at(at), self.1.split_at(at));
+        ((a0, b0), (a1, b1))
+    }
+}
+
+/// Calls `work(first, count, rows)` on bands of at most `band` rows of `rows` (`n_rows` rows of
+/// `width`), halving the rows between the pool's threads until a band is that small.
+pub(crate) fn in_bands<R: Rows>(
+    rows: R,
+    n_rows: usize,
+    width: usize,
+    band: usize,
+    work: &(impl Fn(usize, usize, R) + Sync),
+) {
+    fn split<R: Rows>(
+        rows: R,
+        first: usize,
+        count: usize,
+        width: usize,
+        band: usize,
+        work: &(impl Fn(usize, usize, R) + Sync),
+    ) {
+        if count <= band {
+            work(first, count, rows);
+            return;
+        }
+        let half = count / 2;
+        let (front, back) = rows.split_at(half * width);
+        rayon::join(
+            || split(front, first, half, width, band, work),
+            || split(back, first + half, count - half, width, band, work),
+        );
+    }
+    split(rows, 0, n_rows, width, band, work);
 }

@@ -17,10 +17,9 @@
 //! rediscretised on every other particle, with its own positions, lumped masses and doubled rest
 //! lengths.
 
-use rayon::prelude::*;
-
 use super::super::super::Real;
 use super::super::super::arrays::Arrays;
+use super::super::super::parallel::in_bands;
 use super::super::super::sym3::Sym3;
 
 /// A vector field over the particles, one array per axis.
@@ -220,10 +219,15 @@ impl<T: Real> GridOperator<T> {
         self.update_smoother();
     }
 
-    /// Rows per band when the operator's work is split over the pool's threads: all of them on a
-    /// serial operator.
+    /// Rows per band when the operator's products and assembly are split over the pool's
+    /// threads: all of them on a serial operator.
     fn band_rows(&self) -> usize {
         if self.parallel { self.ny.div_ceil(4 * rayon::current_num_threads()).max(1) } else { self.ny }
+    }
+
+    /// Rows per piece of the element-wise smoother work: sixteen on a parallel operator.
+    fn piece_rows(&self) -> usize {
+        if self.parallel { 16 } else { self.ny }
     }
 
     /// This operator as a copy of `source` (the same grid and families) rounded to `T`, with its
@@ -244,30 +248,16 @@ impl<T: Real> GridOperator<T> {
     /// `ω D⁻¹` from the diagonal blocks.
     fn update_smoother(&mut self) {
         let omega = T::from_f64(JACOBI_DAMPING);
+        let (nx, piece) = (self.nx, self.piece_rows());
         let diagonal = self.diagonal.arrays();
-        let invert = |(k, mut s): (usize, [&mut [T]; 6]), piece: usize| {
+        in_bands(self.smoother.arrays_mut(), self.ny, nx, piece, &|first, _, mut s| {
             for m in 0..s[0].len() {
-                let p = k * piece + m;
-                let block = Sym3::from_entries(diagonal.map(|a| a[p]));
+                let block = Sym3::from_entries(diagonal.map(|a| a[first * nx + m]));
                 for (s, e) in s.iter_mut().zip((block.inverse() * omega).entries()) {
                     s[m] = e;
                 }
             }
-        };
-        let [s0, s1, s2, s3, s4, s5] = self.smoother.arrays_mut();
-        if !self.parallel {
-            invert((0, [s0, s1, s2, s3, s4, s5]), 0);
-            return;
-        }
-        let piece = self.nx * 16;
-        s0.par_chunks_mut(piece)
-            .zip(s1.par_chunks_mut(piece))
-            .zip(s2.par_chunks_mut(piece))
-            .zip(s3.par_chunks_mut(piece))
-            .zip(s4.par_chunks_mut(piece))
-            .zip(s5.par_chunks_mut(piece))
-            .enumerate()
-            .for_each(|(k, (((((s0, s1), s2), s3), s4), s5))| invert((k, [s0, s1, s2, s3, s4, s5]), piece));
+        });
     }
 
     /// Zeroes the couplings of pinned particles and sets their diagonal to their mass, so that
@@ -362,20 +352,9 @@ impl<T: Real> GridOperator<T> {
     /// parallel; every `y[p]` is summed in the same order either way, so the bits do not depend
     /// on the cut or on the number of threads.
     fn apply_all(&self, x: &Field<T>, b: Option<&Field<T>>, y: &mut Field<T>) {
-        let [y0, y1, y2] = y.arrays_mut();
-        if !self.is_parallel() {
-            self.apply_rows(x, b, [y0, y1, y2], 0..self.ny);
-            return;
-        }
-        let band = self.ny.div_ceil(4 * rayon::current_num_threads()).max(1) * self.nx;
-        y0.par_chunks_mut(band)
-            .zip(y1.par_chunks_mut(band))
-            .zip(y2.par_chunks_mut(band))
-            .enumerate()
-            .for_each(|(k, ((y0, y1), y2))| {
-                let (first, rows) = (k * band / self.nx, y0.len() / self.nx);
-                self.apply_rows(x, b, [y0, y1, y2], first..first + rows);
-            });
+        in_bands(y.arrays_mut(), self.ny, self.nx, self.band_rows(), &|first, count, y| {
+            self.apply_rows(x, b, y, first..first + count)
+        });
     }
 
     /// `y = A x`.
@@ -402,22 +381,11 @@ impl<T: Real> GridOperator<T> {
     /// `x = ω D⁻¹ r`, or `x += ω D⁻¹ r` with `ADD`; in pieces on the pool's threads on a large
     /// grid (each entry is computed alone, so the pieces change no bits).
     fn smoother_products<const ADD: bool>(&self, r: &Field<T>, x: &mut Field<T>) {
-        let [x0, x1, x2] = x.arrays_mut();
-        if !self.is_parallel() {
-            let (smoother, r) = (self.smoother.arrays(), r.arrays());
-            block_products::<T, ADD>([x0, x1, x2], smoother, r);
-            return;
-        }
-        let piece = self.nx * 16;
-        x0.par_chunks_mut(piece)
-            .zip(x1.par_chunks_mut(piece))
-            .zip(x2.par_chunks_mut(piece))
-            .enumerate()
-            .for_each(|(k, ((x0, x1), x2))| {
-                let at = k * piece..k * piece + x0.len();
-                let smoother = self.smoother.arrays().map(|a| &a[at.clone()]);
-                block_products::<T, ADD>([x0, x1, x2], smoother, r.arrays().map(|a| &a[at.clone()]));
-            });
+        let (smoother, r) = (self.smoother.arrays(), r.arrays());
+        in_bands(x.arrays_mut(), self.ny, self.nx, self.piece_rows(), &|first, count, x| {
+            let at = first * self.nx..(first + count) * self.nx;
+            block_products::<T, ADD>(x, smoother.map(|a| &a[at.clone()]), r.map(|a| &a[at.clone()]));
+        });
     }
 
     /// The block `A[p, q]` for `q` equal to `p` or one stencil offset away (zero otherwise).
@@ -480,58 +448,6 @@ impl Span {
         let (first, second) = if self.dj > 0 { (upper, lower) } else { (lower, upper) };
         first.into_iter().chain(second)
     }
-}
-
-/// Mutable row-major arrays of one grid's rows, which can be cut between rows.
-trait Rows: Send + Sized {
-    /// The first `at` elements of each array, and the rest.
-    fn split_at(self, at: usize) -> (Self, Self);
-}
-
-impl<T: Send, const K: usize> Rows for [&mut [T]; K] {
-    fn split_at(self, at: usize) -> (Self, Self) {
-        let mut halves = self.map(|a| a.split_at_mut(at));
-        let front = halves.each_mut().map(|(front, _)| std::mem::take(front));
-        (front, halves.map(|(_, back)| back))
-    }
-}
-
-impl<A: Rows, B: Rows> Rows for (A, B) {
-    fn split_at(self, at: usize) -> (Self, Self) {
-        let ((a0, a1), (b0, b1)) = (self.0.split_at(at), self.1.split_at(at));
-        ((a0, b0), (a1, b1))
-    }
-}
-
-/// Calls `work(first, count, rows)` on bands of at most `band` rows of `rows` (`n_rows` rows of
-/// `width`), halving the rows between the pool's threads until a band is that small.
-fn in_bands<R: Rows>(
-    rows: R,
-    n_rows: usize,
-    width: usize,
-    band: usize,
-    work: &(impl Fn(usize, usize, R) + Sync),
-) {
-    fn split<R: Rows>(
-        rows: R,
-        first: usize,
-        count: usize,
-        width: usize,
-        band: usize,
-        work: &(impl Fn(usize, usize, R) + Sync),
-    ) {
-        if count <= band {
-            work(first, count, rows);
-            return;
-        }
-        let half = count / 2;
-        let (front, back) = rows.split_at(half * width);
-        rayon::join(
-            || split(front, first, half, width, band, work),
-            || split(back, first + half, count - half, width, band, work),
-        );
-    }
-    split(rows, 0, n_rows, width, band, work);
 }
 
 /// One family's coefficients in the step's units.

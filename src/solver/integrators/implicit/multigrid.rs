@@ -22,8 +22,7 @@
 use super::super::super::Real;
 use std::any::Any;
 
-use rayon::prelude::*;
-
+use super::super::super::parallel::in_bands;
 use super::grid_operator::{Family, Field, GridOperator, zero_field};
 
 /// The coarsest level has at most this many particles and is solved directly.
@@ -263,13 +262,9 @@ fn by_rows<T: Send>(
     parallel: bool,
     piece: impl Fn(usize, &mut [T]) + Sync + Send,
 ) {
-    if !parallel || width == 0 {
-        piece(0, rows);
-        return;
-    }
-    let n_rows = rows.len() / width;
-    let per_piece = n_rows.div_ceil(4 * rayon::current_num_threads()).max(1);
-    rows.par_chunks_mut(per_piece * width).enumerate().for_each(|(k, rows)| piece(k * per_piece, rows));
+    let n_rows = rows.len().checked_div(width).unwrap_or(0);
+    let band = if parallel { n_rows.div_ceil(4 * rayon::current_num_threads()) } else { n_rows };
+    in_bands([rows], n_rows, width, band.max(1), &|first, _, [rows]| piece(first, rows));
 }
 
 /// `coarse = Pᵀ fine` for one scalar array. Each coarse row gathers the fine rows whose parent
