@@ -31,6 +31,12 @@ pub(crate) fn whole<'a, T: Real>(x: [&'a [T]; 3], v: [&'a [T]; 3], first: usize)
     [block(x[0]), block(x[1]), block(x[2]), block(v[0]), block(v[1]), block(v[2])]
 }
 
+/// The positions of the `LANES` consecutive particles from `first`, per axis, read in place.
+#[inline(always)]
+pub(crate) fn positions<T: Real>(x: [&[T]; 3], first: usize) -> [&[T; LANES]; 3] {
+    x.map(|axis| <&[T; LANES]>::try_from(&axis[first..first + LANES]).expect("a whole block"))
+}
+
 /// The positions then velocities of `count < LANES` consecutive particles from `first`, per
 /// component, padded with zeros: a padded lane's two ends coincide, so its force is zero.
 #[inline(always)]

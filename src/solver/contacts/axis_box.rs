@@ -26,15 +26,26 @@ impl<T: Real> AxisBox<T> {
         outside + inside
     }
 
-    #[allow(clippy::needless_range_loop, reason = "three arrays indexed by axis")]
+    /// How far inside each pair of faces `x` is (negative outside them).
+    #[inline(always)]
+    fn depths(&self, x: [T; 3]) -> [T; 3] {
+        std::array::from_fn(|a| self.half[a] - (x[a] - self.center[a]).abs())
+    }
+
+    /// Whether `x` is inside the box or on it: the test [`inside`](Self::inside) starts with.
+    #[inline(always)]
+    pub fn reaches(&self, x: Vec3<T>) -> bool {
+        let [dx, dy, dz] = self.depths(x.to_array());
+        (dx >= T::ZERO) & (dy >= T::ZERO) & (dz >= T::ZERO)
+    }
+
     pub fn inside(&self, x: Vec3<T>) -> Option<Surface<T>> {
+        if !self.reaches(x) {
+            return None;
+        }
         let mut p = x.to_array();
         let mut nearest: Option<(usize, T)> = None;
-        for a in 0..3 {
-            let depth = self.half[a] - (p[a] - self.center[a]).abs();
-            if !(depth >= T::ZERO) {
-                return None;
-            }
+        for (a, depth) in self.depths(p).into_iter().enumerate() {
             if nearest.is_none_or(|(_, d)| depth < d) {
                 nearest = Some((a, depth));
             }

@@ -31,12 +31,20 @@ impl<T: Real> Cylinder<T> {
         outside + radial.max(axial).min(T::ZERO)
     }
 
-    pub fn inside(&self, x: Vec3<T>) -> Option<Surface<T>> {
+    /// Whether `x` is inside the cylinder or on it: the test [`inside`](Self::inside) starts with.
+    #[inline(always)]
+    pub fn reaches(&self, x: Vec3<T>) -> bool {
         let local = x - self.center;
         let radial2 = local.x * local.x + local.z * local.z;
-        if !(local.y.abs() <= self.half_height && radial2 <= self.radius * self.radius) {
+        (local.y.abs() <= self.half_height) & (radial2 <= self.radius * self.radius)
+    }
+
+    pub fn inside(&self, x: Vec3<T>) -> Option<Surface<T>> {
+        if !self.reaches(x) {
             return None;
         }
+        let local = x - self.center;
+        let radial2 = local.x * local.x + local.z * local.z;
         let radial = radial2.sqrt();
         let side = self.radius - radial;
         let top = self.half_height - local.y;

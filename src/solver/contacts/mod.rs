@@ -23,7 +23,11 @@
 //! once, only when a scene has colliders. Boxes and cylinders are tested at the end of the step.
 //!
 //! Each shape has its own file: the test "is this point inside, and where is the nearest surface
-//! point", and the signed distance used to check results.
+//! point", the cheap branch-free test it starts with (`reaches`, and for the sphere `dips`), and
+//! the signed distance used to check results. A step tests a block of particles against a shape
+//! with the cheap test in vector lanes and gives only those that pass the exact one; particles
+//! are independent, so a large state is resolved in bands on the solver's threads, with the same
+//! result.
 
 mod axis_box;
 mod cylinder;
@@ -35,7 +39,10 @@ mod tests;
 
 use glam::DVec3;
 
-use super::{Real, State, Vec3, Vectors};
+use std::sync::atomic::{AtomicBool, Ordering};
+
+use super::spring_blocks::{self as blocks, LANES};
+use super::{Real, State, Vec3, Vectors, parallel};
 
 /// The friction coefficient a collider has when the scene gives none.
 pub const DEFAULT_FRICTION: f64 = 0.3;
@@ -152,6 +159,25 @@ impl<T: Real> ShapeIn<T> {
 
     /// Where a particle moving from `start` to `end` (outside at both ends) met the surface, for
     /// the shapes a particle can cross within one step without ending inside.
+    /// For the [`LANES`] particles from `first`, moving from `start` to `end`: whether each
+    /// passes the test its [`contact`](Self::contact) starts with, so that no particle with a
+    /// contact is left out. Branch-free, one lane per particle, so that it compiles to vector
+    /// instructions.
+    fn reaches_lanes(&self, start: [&[T]; 3], end: [&[T]; 3], first: usize) -> [bool; LANES] {
+        let (start, end) = (blocks::positions(start, first), blocks::positions(end, first));
+        let at =
+            |axes: &[&[T; LANES]; 3], lane: usize| Vec3::new(axes[0][lane], axes[1][lane], axes[2][lane]);
+        let mut reaches = [false; LANES];
+        match self {
+            Self::Plane(s) => (0..LANES).for_each(|l| reaches[l] = s.reaches(at(&end, l))),
+            Self::Sphere(s) => (0..LANES)
+                .for_each(|l| reaches[l] = s.reaches(at(&end, l)) | s.dips(at(&start, l), at(&end, l))),
+            Self::Box(s) => (0..LANES).for_each(|l| reaches[l] = s.reaches(at(&end, l))),
+            Self::Cylinder(s) => (0..LANES).for_each(|l| reaches[l] = s.reaches(at(&end, l))),
+        }
+        reaches
+    }
+
     fn contact(&self, start: Vec3<T>, end: Vec3<T>) -> Option<Surface<T>> {
         match self {
             Self::Sphere(s) => {
@@ -175,6 +201,34 @@ struct ColliderIn<T> {
     shape: ShapeIn<T>,
     friction: T,
     restitution: T,
+}
+
+/// One band's particles: their start-of-step positions, their state and inverse masses.
+struct Band<'a, T> {
+    start: [&'a [T]; 3],
+    positions: [&'a mut [T]; 3],
+    velocities: [&'a mut [T]; 3],
+    inverse_masses: &'a [T],
+}
+
+impl<T: Real> Band<'_, T> {
+    /// Resolves particle `p`'s contact with `c`, if it has one; pinned particles have none.
+    fn contact(&mut self, c: &ColliderIn<T>, p: usize) -> bool {
+        let at = |axes: [&[T]; 3]| Vec3::new(axes[0][p], axes[1][p], axes[2][p]);
+        let end = at(self.positions.each_ref().map(|a| &**a));
+        if self.inverse_masses[p] == T::ZERO {
+            return false;
+        }
+        let Some(surface) = c.shape.contact(at(self.start), end) else { return false };
+        let mut velocity = at(self.velocities.each_ref().map(|a| &**a));
+        respond(&mut velocity, surface.normal, c.friction, c.restitution);
+        let (point, velocity) = (surface.point.to_array(), velocity.to_array());
+        for (axis, (x, v)) in self.positions.iter_mut().zip(&mut self.velocities).enumerate() {
+            x[p] = point[axis];
+            v[p] = velocity[axis];
+        }
+        true
+    }
 }
 
 /// The contact stage: every collider, and the start-of-step positions for the swept tests.
@@ -223,26 +277,51 @@ impl<T: Real> Contacts<T> {
 
     /// Resolves every contact of the step that moved the particles from the positions given to
     /// [`begin_step`](Self::begin_step) to `state`. Returns whether any particle was touched.
+    ///
+    /// Each particle meets the colliders in order and alone, so a large state is cut into bands
+    /// of particles on the solver's threads with the same result. Within a band, a block of
+    /// [`LANES`] particles is first tested against a collider side by side, in vector lanes, by
+    /// the cheap test its exact contact starts with ([`ShapeIn::reaches_lanes`]); only the
+    /// particles that pass take the exact, branching test.
     pub fn resolve(&self, state: &mut State<T>, inverse_masses: &[T]) -> bool {
-        let mut touched = false;
-        for (p, &w) in inverse_masses.iter().enumerate() {
-            if w == T::ZERO {
-                continue;
+        let n = inverse_masses.len();
+        let band = n.div_ceil(parallel::band_count(n, n, 1));
+        let touched = AtomicBool::new(false);
+        let [x, y, z] = state.positions.axes_mut();
+        let [u, v, w] = state.velocities.axes_mut();
+        parallel::in_bands([x, y, z, u, v, w], n, 1, band, &|first, count, [x, y, z, u, v, w]| {
+            let particles = first..first + count;
+            let band = Band {
+                start: self.start.range(particles.clone()),
+                positions: [x, y, z],
+                velocities: [u, v, w],
+                inverse_masses: &inverse_masses[particles],
+            };
+            if self.resolve_band(band) {
+                touched.store(true, Ordering::Relaxed);
             }
-            let start = self.start.get(p);
+        });
+        touched.into_inner()
+    }
+
+    fn resolve_band(&self, mut band: Band<T>) -> bool {
+        let count = band.inverse_masses.len();
+        let mut touched = false;
+        for block in (0..count).step_by(LANES) {
+            let lanes = LANES.min(count - block);
             for c in &self.colliders {
-                if let Some(surface) = c.shape.contact(start, state.positions.get(p)) {
-                    state.positions.set(p, surface.point);
-                    let mut v = state.velocities.get(p);
-                    respond(&mut v, surface.normal, c.friction, c.restitution);
-                    state.velocities.set(p, v);
-                    touched = true;
+                let candidates = if lanes == LANES {
+                    c.shape.reaches_lanes(band.start, band.positions.each_ref().map(|a| &**a), block)
+                } else {
+                    [true; LANES]
+                };
+                for lane in (0..lanes).filter(|&lane| candidates[lane]) {
+                    touched |= band.contact(c, block + lane);
                 }
             }
         }
         touched
     }
-
     /// The names of the collider stages, each type once, in the order they first appear.
     pub fn stages(&self) -> impl Iterator<Item = &'static str> + '_ {
         let name = |c: &ColliderIn<T>| match c.shape {

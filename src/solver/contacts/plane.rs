@@ -23,8 +23,14 @@ impl<T: Real> Plane<T> {
         (x - self.point).dot(self.normal)
     }
 
+    /// Whether `x` is behind the plane or on it: the test [`inside`](Self::inside) starts with.
+    #[inline(always)]
+    pub fn reaches(&self, x: Vec3<T>) -> bool {
+        self.signed_distance(x) <= T::ZERO
+    }
+
     pub fn inside(&self, x: Vec3<T>) -> Option<Surface<T>> {
         let depth = self.signed_distance(x);
-        (depth <= T::ZERO).then(|| Surface { point: x - self.normal * depth, normal: self.normal })
+        self.reaches(x).then(|| Surface { point: x - self.normal * depth, normal: self.normal })
     }
 }

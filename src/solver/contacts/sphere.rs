@@ -27,12 +27,18 @@ impl<T: Real> Sphere<T> {
 
     /// The surface point straight out from the centre, for a particle inside or on the surface. A particle exactly at the centre has no
     /// such direction; it goes out upwards (+y).
+    /// Whether `x` is inside the sphere or on it: the test [`inside`](Self::inside) starts with.
+    #[inline(always)]
+    pub fn reaches(&self, x: Vec3<T>) -> bool {
+        (x - self.center).length_squared() <= self.radius * self.radius
+    }
+
     pub fn inside(&self, x: Vec3<T>) -> Option<Surface<T>> {
-        let offset = x - self.center;
-        let distance2 = offset.length_squared();
-        if !(distance2 <= self.radius * self.radius) {
+        if !self.reaches(x) {
             return None;
         }
+        let offset = x - self.center;
+        let distance2 = offset.length_squared();
         let distance = distance2.sqrt();
         let normal = if distance > T::ZERO {
             offset * (T::ONE / distance)
@@ -74,15 +80,20 @@ impl<T: Real> Sphere<T> {
     /// [`GRAZE`] of the radius (as a particle sliding over the sphere does between two surface
     /// points), is not a passage.
     pub fn passage(&self, start: Vec3<T>, end: Vec3<T>) -> Option<Surface<T>> {
+        if self.dips(start, end) { self.entry(start, end) } else { None }
+    }
+
+    /// Whether the segment from `start` to `end` (of positive length) comes closer to the centre
+    /// than the grazing depth: the test [`passage`](Self::passage) starts with. Branch-free: a
+    /// segment of zero length computes a meaningless `s` and is refused at the end.
+    #[inline(always)]
+    pub fn dips(&self, start: Vec3<T>, end: Vec3<T>) -> bool {
         let d = end - start;
         let a = d.length_squared();
-        if !(a > T::ZERO) {
-            return None;
-        }
         let s = ((self.center - start).dot(d) / a).max(T::ZERO).min(T::ONE);
         let deepest = (start + d * s - self.center).length_squared();
         let shallow = self.radius * (T::ONE - T::from_f64(GRAZE));
-        if deepest < shallow * shallow { self.entry(start, end) } else { None }
+        (a > T::ZERO) & (deepest < shallow * shallow)
     }
 
     fn at(&self, normal: Vec3<T>) -> Surface<T> {
