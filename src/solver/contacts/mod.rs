@@ -214,11 +214,11 @@ struct Band<'a, T> {
 impl<T: Real> Band<'_, T> {
     /// Resolves particle `p`'s contact with `c`, if it has one; pinned particles have none.
     fn contact(&mut self, c: &ColliderIn<T>, p: usize) -> bool {
-        let at = |axes: [&[T]; 3]| Vec3::new(axes[0][p], axes[1][p], axes[2][p]);
-        let end = at(self.positions.each_ref().map(|a| &**a));
         if self.inverse_masses[p] == T::ZERO {
             return false;
         }
+        let at = |axes: [&[T]; 3]| Vec3::new(axes[0][p], axes[1][p], axes[2][p]);
+        let end = at(self.positions.each_ref().map(|a| &**a));
         let Some(surface) = c.shape.contact(at(self.start), end) else { return false };
         let mut velocity = at(self.velocities.each_ref().map(|a| &**a));
         respond(&mut velocity, surface.normal, c.friction, c.restitution);
