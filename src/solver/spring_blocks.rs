@@ -27,14 +27,14 @@ pub(crate) type Forces<T> = [[T; LANES]; 3];
 /// component, read in place.
 #[inline(always)]
 pub(crate) fn whole<'a, T: Real>(x: [&'a [T]; 3], v: [&'a [T]; 3], first: usize) -> Ends<'a, T> {
-    let block = |axis: &'a [T]| <&[T; LANES]>::try_from(&axis[first..first + LANES]).expect("a whole block");
-    [block(x[0]), block(x[1]), block(x[2]), block(v[0]), block(v[1]), block(v[2])]
+    let ([x0, x1, x2], [v0, v1, v2]) = (axes(x, first), axes(v, first));
+    [x0, x1, x2, v0, v1, v2]
 }
 
-/// The positions of the `LANES` consecutive particles from `first`, per axis, read in place.
+/// The `LANES` consecutive values from `first` of each of three axes, read in place.
 #[inline(always)]
-pub(crate) fn positions<T: Real>(x: [&[T]; 3], first: usize) -> [&[T; LANES]; 3] {
-    x.map(|axis| <&[T; LANES]>::try_from(&axis[first..first + LANES]).expect("a whole block"))
+pub(crate) fn axes<T: Real>(axes: [&[T]; 3], first: usize) -> [&[T; LANES]; 3] {
+    axes.map(|axis| <&[T; LANES]>::try_from(&axis[first..first + LANES]).expect("a whole block"))
 }
 
 /// The positions then velocities of `count < LANES` consecutive particles from `first`, per

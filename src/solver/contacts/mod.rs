@@ -164,7 +164,7 @@ impl<T: Real> ShapeIn<T> {
     /// contact is left out. Branch-free, one lane per particle, so that it compiles to vector
     /// instructions.
     fn reaches_lanes(&self, start: [&[T]; 3], end: [&[T]; 3], first: usize) -> [bool; LANES] {
-        let (start, end) = (blocks::positions(start, first), blocks::positions(end, first));
+        let (start, end) = (blocks::axes(start, first), blocks::axes(end, first));
         let at =
             |axes: &[&[T; LANES]; 3], lane: usize| Vec3::new(axes[0][lane], axes[1][lane], axes[2][lane]);
         let mut reaches = [false; LANES];
