@@ -17,6 +17,14 @@
 //! read. The cost is linear in the particle count for any layout whose cells hold a bounded
 //! number of particles, as cloth does.
 //!
+//! Which pairs a particle meets depends on the cells alone, which are fixed for the sweep, so
+//! that search, the costly part, runs in bands of particles on the solver's threads, each band
+//! listing its pairs in the sweep's order; the sweep then takes the lists one after the other.
+//! The pairs and their order are those of one thread's search, whatever the number of bands. The
+//! lists start with room for a pair per particle and keep it from step to step (a 256² cloth
+//! draped over a sphere meets a few hundred pairs); only a state more crumpled than that makes a
+//! step allocate, once, to make more room.
+//!
 //! A pair closer than `2 · thickness` that no spring joins is pushed apart along the line
 //! between them until it is exactly that far, shared by inverse mass (a pinned particle is held),
 //! and the part of its relative velocity that brings them together is removed, shared the same
@@ -28,8 +36,10 @@
 
 #![allow(clippy::neg_cmp_op_on_partial_ord, reason = "written so that a NaN fails each test")]
 
+use std::ops::Range;
+
 use super::model::Model;
-use super::{Real, State, Vec3, Vectors};
+use super::{Real, State, Vec3, Vectors, parallel};
 
 /// A cell's coordinates in cell sides, clamped to `i32` (a particle that far away has diverged;
 /// clamping only merges far cells, and the distance test still decides).
@@ -48,23 +58,51 @@ struct Entry {
 /// one of its two cells, so each pair of particles is met once.
 const FORWARD: [[i64; 3]; 5] = [[0, 0, 0], [0, 1, -1], [1, -1, -1], [1, 0, -1], [1, 1, -1]];
 
-/// The self-collision stage with its hash and scratch, allocated once.
-#[derive(Clone, Debug)]
-pub struct SelfCollision<T> {
-    /// The distance every unjoined pair keeps: `2 · thickness`.
-    distance: T,
+/// Where a position falls: its cell, and the cell's bucket in a table of a power-of-two size.
+#[derive(Clone, Copy, Debug)]
+struct CellHash {
     /// `1 / cell side`.
     inverse_cell: f64,
     /// Bucket count minus one (a power of two minus one).
     mask: usize,
     /// 64 minus the bucket count's power of two: the shift that keeps a hash's top bits.
     shift: u32,
+}
+
+impl CellHash {
+    fn cell<T: Real>(&self, x: [T; 3]) -> Cell {
+        x.map(|v| (v.to_f64() * self.inverse_cell).floor().clamp(i32::MIN.into(), i32::MAX.into()) as i32)
+    }
+
+    /// The bucket of cell `(i, j, k)`: the column `(j, k)` hashed (Fibonacci hashing: the top
+    /// bits of the product with 2^64 / φ, which every bit of `j` and `k` reaches), plus `i`, so
+    /// that consecutive `i` are consecutive buckets.
+    fn bucket_of(&self, i: i64, j: i64, k: i64) -> usize {
+        let column = ((j as u64) << 32 ^ (k as u32 as u64)).wrapping_mul(0x9E37_79B9_7F4A_7C15);
+        ((column >> self.shift) as usize).wrapping_add(i as usize) & self.mask
+    }
+
+    fn bucket(&self, [i, j, k]: Cell) -> usize {
+        self.bucket_of(i.into(), j.into(), k.into())
+    }
+}
+
+/// The self-collision stage with its hash and scratch, allocated once.
+#[derive(Clone, Debug)]
+pub struct SelfCollision<T> {
+    /// The distance every unjoined pair keeps: `2 · thickness`.
+    distance: T,
+    hash: CellHash,
     /// Per bucket: index of its first particle in `sorted`; one extra entry at the end.
     bucket_start: Vec<u32>,
     /// The particles sorted by bucket, each with its cell.
     sorted: Vec<Entry>,
-    /// Per particle: its cell.
+    /// Per particle: its cell and the cell's bucket.
     cells: Vec<Cell>,
+    buckets: Vec<u32>,
+    /// Per band of particles (one per solver thread for a large state): the candidate pairs its
+    /// particles meet, in the sweep's order.
+    pairs: Vec<Vec<[u32; 2]>>,
     /// Spring partners of each particle, sorted: `partners[partner_start[p]..partner_start[p + 1]]`.
     partner_start: Vec<u32>,
     partners: Vec<u32>,
@@ -93,12 +131,19 @@ impl<T: Real> SelfCollision<T> {
         partner_start.push(partners.len() as u32);
         Self {
             distance: T::from_f64(2.0 * thickness),
-            inverse_cell: 1.0 / (2.0 * thickness),
-            mask: buckets - 1,
-            shift: 64 - buckets.trailing_zeros(),
+            hash: CellHash {
+                inverse_cell: 1.0 / (2.0 * thickness),
+                mask: buckets - 1,
+                shift: 64 - buckets.trailing_zeros(),
+            },
             bucket_start: vec![0; buckets + 1],
             sorted: vec![Entry::default(); n],
             cells: vec![[0; 3]; n],
+            buckets: vec![0; n],
+            pairs: {
+                let bands = parallel::band_count(n, n, 1);
+                (0..bands).map(|_| Vec::with_capacity(n.div_ceil(bands))).collect()
+            },
             partner_start,
             partners,
         }
@@ -109,62 +154,76 @@ impl<T: Real> SelfCollision<T> {
         self.partners[range].binary_search(&q).is_ok()
     }
 
-    fn cell(&self, x: Vec3<T>) -> Cell {
-        let c =
-            |v: T| (v.to_f64() * self.inverse_cell).floor().clamp(i32::MIN.into(), i32::MAX.into()) as i32;
-        [c(x.x), c(x.y), c(x.z)]
-    }
-
-    /// The bucket of cell `(i, j, k)`: the column `(j, k)` hashed (Fibonacci hashing: the top
-    /// bits of the product with 2^64 / φ, which every bit of `j` and `k` reaches), plus `i`, so
-    /// that consecutive `i` are consecutive buckets.
-    fn bucket_of(&self, i: i64, j: i64, k: i64) -> usize {
-        let column = ((j as u64) << 32 ^ (k as u32 as u64)).wrapping_mul(0x9E37_79B9_7F4A_7C15);
-        ((column >> self.shift) as usize).wrapping_add(i as usize) & self.mask
-    }
-
-    fn bucket(&self, [i, j, k]: Cell) -> usize {
-        self.bucket_of(i.into(), j.into(), k.into())
-    }
-
-    /// Counting-sorts the particles into the hash buckets of their cells.
+    /// Counting-sorts the particles into the hash buckets of their cells. Each particle's cell
+    /// and bucket depend on its position alone, so a large state finds them in bands on the
+    /// solver's threads.
     fn build(&mut self, x: &Vectors<T>) {
-        self.bucket_start.fill(0);
-        for (p, position) in x.iter().enumerate() {
-            let cell = self.cell(position);
-            self.cells[p] = cell;
-            let b = self.bucket(cell);
-            self.bucket_start[b + 1] += 1;
+        let (hash, n) = (self.hash, self.cells.len());
+        let band = n.div_ceil(parallel::band_count(n, n, 1));
+        let [x, y, z] = x.axes();
+        let outputs = ([&mut self.cells[..]], [&mut self.buckets[..]]);
+        parallel::in_bands(outputs, n, 1, band, &|first, _, ([cells], [buckets])| {
+            for (p, (cell, bucket)) in (first..).zip(cells.iter_mut().zip(buckets)) {
+                *cell = hash.cell([x[p], y[p], z[p]]);
+                *bucket = hash.bucket(*cell) as u32;
+            }
+        });
+        // Each bucket's count, then the running sum: where each bucket ends.
+        let (ends, total) = self.bucket_start.split_at_mut(hash.mask + 1);
+        ends.fill(0);
+        for &b in &self.buckets {
+            ends[b as usize] += 1;
         }
-        for b in 1..self.bucket_start.len() {
-            self.bucket_start[b] += self.bucket_start[b - 1];
+        let mut end = 0;
+        for count in ends.iter_mut() {
+            end += *count;
+            *count = end;
         }
-        // Scatter, using each bucket's start as its cursor, then shift the starts back.
-        for (p, &cell) in self.cells.iter().enumerate() {
-            let b = self.bucket(cell);
-            self.sorted[self.bucket_start[b] as usize] = Entry { particle: p as u32, cell };
-            self.bucket_start[b] += 1;
+        total[0] = end;
+        // Scatter from the last particle back, each bucket's end its cursor: the buckets fill
+        // from their ends down, their particles in increasing order, and each cursor is left at
+        // its bucket's start.
+        for (p, (&cell, &b)) in self.cells.iter().zip(&self.buckets).enumerate().rev() {
+            let cursor = &mut self.bucket_start[b as usize];
+            *cursor -= 1;
+            self.sorted[*cursor as usize] = Entry { particle: p as u32, cell };
         }
-        for b in (1..self.bucket_start.len()).rev() {
-            self.bucket_start[b] = self.bucket_start[b - 1];
-        }
-        self.bucket_start[0] = 0;
     }
 
     /// The entries of the buckets from `first` to `last` (at most `mask`).
-    fn buckets(&self, first: usize, last: usize) -> &[Entry] {
+    fn entries(&self, first: usize, last: usize) -> &[Entry] {
         &self.sorted[self.bucket_start[first] as usize..self.bucket_start[last + 1] as usize]
     }
 
     /// Pushes apart every unjoined pair closer than `2 · thickness`; returns whether any moved.
     pub fn resolve(&mut self, state: &mut State<T>, inverse_masses: &[T]) -> bool {
         self.build(&state.positions);
+        let mut pairs = std::mem::take(&mut self.pairs);
+        let (bands, n) = (pairs.len(), self.cells.len());
+        let chunk = n.div_ceil(bands).max(1);
+        let this = &*self;
+        parallel::in_bands([&mut pairs[..]], bands, 1, 1, &|band, _, [lists]| {
+            for (band, list) in (band..).zip(lists) {
+                list.clear();
+                this.candidates(band * chunk..((band + 1) * chunk).min(n), list);
+            }
+        });
         let mut moved = false;
-        for (p, &[ci, cj, ck]) in self.cells.iter().enumerate() {
-            let (i, j, k) = (i64::from(ci), i64::from(cj), i64::from(ck));
+        for &[p, q] in pairs.iter().flatten() {
+            moved |= self.separate(p as usize, q as usize, state, inverse_masses);
+        }
+        self.pairs = pairs;
+        moved
+    }
+
+    /// Appends to `pairs`, in the sweep's order, every pair the particles `particles` meet in
+    /// the cells after their own.
+    fn candidates(&self, particles: Range<usize>, pairs: &mut Vec<[u32; 2]>) {
+        for p in particles {
+            let [i, j, k] = self.cells[p].map(i64::from);
             for [dj, dk, from] in FORWARD {
                 let (column_j, column_k) = (j + dj, k + dk);
-                let first = self.bucket_of(i + from, column_j, column_k);
+                let first = self.hash.bucket_of(i + from, column_j, column_k);
                 let mut meet = |entries: &[Entry]| {
                     for entry in entries {
                         let [ei, ej, ek] = entry.cell.map(i64::from);
@@ -174,25 +233,24 @@ impl<T: Real> SelfCollision<T> {
                         let once = (ei != i) | (dj != 0) | (dk != 0) | (q > p);
                         // One branch, rarely taken: most entries are of other columns.
                         if beside & once {
-                            moved |= self.separate(p, q, state, inverse_masses);
+                            pairs.push([p as u32, q as u32]);
                         }
                     }
                 };
                 let last = first + (1 - from) as usize;
-                if last <= self.mask {
-                    meet(self.buckets(first, last));
+                if last <= self.hash.mask {
+                    meet(self.entries(first, last));
                 } else {
                     // The run wraps past the last bucket.
-                    (first..=last).for_each(|b| meet(self.buckets(b & self.mask, b & self.mask)));
+                    let mask = self.hash.mask;
+                    (first..=last).for_each(|b| meet(self.entries(b & mask, b & mask)));
                 }
             }
         }
-        moved
     }
 
-    /// Pushes `p` and `q` apart if they are closer than `2 · thickness` and no spring joins them;
-    /// returns whether they were.
-    #[inline(never)]
+    /// Pushes the candidate pair `p`, `q` apart if they are closer than `2 · thickness`; returns
+    /// whether they were.
     fn separate(&self, p: usize, q: usize, state: &mut State<T>, inverse_masses: &[T]) -> bool {
         let (x, v) = (&mut state.positions, &mut state.velocities);
         let d = x.get(q) - x.get(p);
@@ -297,6 +355,37 @@ mod tests {
                 assert_eq!(s.positions.get(p), Vec3::from_dvec3(positions[p]));
                 assert_eq!(s.positions.get(q), Vec3::from_dvec3(positions[q]));
             }
+        }
+    }
+
+    #[test]
+    fn the_sweep_gives_the_same_bits_whatever_the_number_of_bands() {
+        // A 40 × 40 cloth crumpled into a small box, so that thousands of pairs are met.
+        let mut m = Model::default();
+        m.add_cloth(&crate::solver::Cloth::square_metre(40, SpringParams { stiffness: 1.0, damping: 0.0 }));
+        for (p, x) in m.positions.iter_mut().enumerate() {
+            let t = p as f64 * 0.37;
+            *x = DVec3::new((t * 1.3).sin(), (t * 0.7).cos(), (t * 2.1).sin()) * 0.1;
+        }
+        let velocities: Vec<f64> = (0..m.particle_count()).map(|p| (p as f64 * 0.11).sin()).collect();
+        let w: Vec<f64> = (0..m.particle_count()).map(|p| if p % 97 == 0 { 0.0 } else { 1.0 }).collect();
+        let sweeps = |bands: usize| {
+            let mut stage = SelfCollision::<f64>::new(&m, 0.004);
+            stage.pairs = vec![Vec::new(); bands];
+            let mut s = state(&m, &velocities);
+            let met = (0..3).map(|_| stage.resolve(&mut s, &w)).collect::<Vec<_>>();
+            (met, stage.pairs.iter().map(Vec::len).sum::<usize>(), s)
+        };
+        let (met, pairs, one) = sweeps(1);
+        assert_eq!(met, [true; 3]);
+        assert!(pairs > 1000, "{pairs} pairs");
+        for bands in [2, 3, 7] {
+            let (_, _, many) = sweeps(bands);
+            assert_eq!(
+                (&many.positions, &many.velocities),
+                (&one.positions, &one.velocities),
+                "{bands} bands"
+            );
         }
     }
 
