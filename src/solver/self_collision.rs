@@ -249,8 +249,8 @@ impl<T: Real> SelfCollision<T> {
         }
     }
 
-    /// Pushes the candidate pair `p`, `q` apart if they are closer than `2 · thickness`; returns
-    /// whether they were.
+    /// Pushes the candidate pair `p`, `q` apart if they are closer than `2 · thickness` and no
+    /// spring joins them; returns whether they were.
     fn separate(&self, p: usize, q: usize, state: &mut State<T>, inverse_masses: &[T]) -> bool {
         let (x, v) = (&mut state.positions, &mut state.velocities);
         let d = x.get(q) - x.get(p);
