@@ -157,8 +157,6 @@ impl<T: Real> ShapeIn<T> {
         }
     }
 
-    /// Where a particle moving from `start` to `end` (outside at both ends) met the surface, for
-    /// the shapes a particle can cross within one step without ending inside.
     /// For the [`LANES`] particles from `first`, moving from `start` to `end`: whether each
     /// passes the test its [`contact`](Self::contact) starts with, so that no particle with a
     /// contact is left out. Branch-free, one lane per particle, so that it compiles to vector
@@ -178,6 +176,8 @@ impl<T: Real> ShapeIn<T> {
         reaches
     }
 
+    /// Where a particle moving from `start` to `end` (outside at both ends) met the surface, for
+    /// the shapes a particle can cross within one step without ending inside.
     fn contact(&self, start: Vec3<T>, end: Vec3<T>) -> Option<Surface<T>> {
         match self {
             Self::Sphere(s) => {
@@ -322,6 +322,7 @@ impl<T: Real> Contacts<T> {
         }
         touched
     }
+
     /// The names of the collider stages, each type once, in the order they first appear.
     pub fn stages(&self) -> impl Iterator<Item = &'static str> + '_ {
         let name = |c: &ColliderIn<T>| match c.shape {

@@ -25,14 +25,14 @@ impl<T: Real> Sphere<T> {
         (x - self.center).length() - self.radius
     }
 
-    /// The surface point straight out from the centre, for a particle inside or on the surface. A particle exactly at the centre has no
-    /// such direction; it goes out upwards (+y).
     /// Whether `x` is inside the sphere or on it: the test [`inside`](Self::inside) starts with.
     #[inline(always)]
     pub fn reaches(&self, x: Vec3<T>) -> bool {
         (x - self.center).length_squared() <= self.radius * self.radius
     }
 
+    /// The surface point straight out from the centre, for a particle inside or on the surface. A
+    /// particle exactly at the centre has no such direction; it goes out upwards (+y).
     pub fn inside(&self, x: Vec3<T>) -> Option<Surface<T>> {
         if !self.reaches(x) {
             return None;
