@@ -268,8 +268,8 @@ impl<T: Real> GridSprings<T> {
 }
 
 /// Runs `work` on every band with its rows' part of `outputs` (rows of `nx` particles from the
-/// first band's), the bands side by side on the solver's threads: halves of the bands are
-/// `rayon::join`ed, which allocates nothing.
+/// first band's), the bands side by side on the solver's threads: halves of the bands are joined
+/// ([`parallel::join`]), which allocates nothing.
 fn in_bands<T: Send, const O: usize>(
     bands: &mut [Band<T>],
     nx: usize,
@@ -289,7 +289,7 @@ fn in_bands<T: Send, const O: usize>(
     for ((low, high), output) in low.iter_mut().zip(&mut high).zip(outputs) {
         (*low, *high) = output.split_at_mut(split);
     }
-    rayon::join(|| in_bands(low_bands, nx, low, work), || in_bands(high_bands, nx, high, work));
+    parallel::join(|| in_bands(low_bands, nx, low, work), || in_bands(high_bands, nx, high, work));
 }
 
 /// What a pass computing accelerations row by row does with each row of them, given the row's

@@ -297,7 +297,7 @@ fn sums_in_halves<T: Real>(masses: &[T], axes: [&[T]; 6]) -> (T, T) {
         return lane_sums(masses, axes);
     }
     let middle = (masses.len() / 2).next_multiple_of(LANES);
-    let (low, high) = rayon::join(
+    let (low, high) = parallel::join(
         || sums_in_halves(&masses[..middle], axes.map(|axis| &axis[..middle])),
         || sums_in_halves(&masses[middle..], axes.map(|axis| &axis[middle..])),
     );

@@ -27,8 +27,6 @@
 
 use std::ops::Range;
 
-use rayon::prelude::*;
-
 use super::model::Spring;
 use super::spring_blocks::{self as blocks, LANES};
 use super::springs::direction;
@@ -149,10 +147,10 @@ impl<T: Real> SpringRuns<T> {
             self.sweep(band, x, v, [fx, fy, fz]);
             return;
         }
-        let chunk = self.band_particles;
-        (self.bands.par_iter(), fx.par_chunks_mut(chunk), fy.par_chunks_mut(chunk), fz.par_chunks_mut(chunk))
-            .into_par_iter()
-            .for_each(|(band, fx, fy, fz)| self.sweep(band, x, v, [fx, fy, fz]));
+        let (bands, width) = (self.bands.len(), self.band_particles);
+        parallel::in_bands([fx, fy, fz], bands, width, 1, &|band, _, forces| {
+            self.sweep(&self.bands[band], x, v, forces);
+        });
     }
 
     /// Adds the force of every spring with an end in `band` to the band's particles, whose

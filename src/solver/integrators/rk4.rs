@@ -262,7 +262,7 @@ impl<T: Real> AccelerationRows<T, 6> for Last<'_, T> {
 }
 
 /// Runs `update` on the particles' outputs and inputs (one axis each, all of one length), cut in
-/// halves run side by side on the solver's threads (`rayon::join`, which allocates nothing) until
+/// halves run side by side on the solver's threads ([`parallel::join`], which allocates nothing) until
 /// a piece has at most `chunk` particles. Each particle's update depends on that particle alone,
 /// so the cut never changes a result.
 fn in_pieces<T: Real, const O: usize, const I: usize>(
@@ -283,7 +283,10 @@ fn in_pieces<T: Real, const O: usize, const I: usize>(
         (*low, *high) = output.split_at_mut(middle);
     }
     let (low_inputs, high_inputs) = (inputs.map(|i| &i[..middle]), inputs.map(|i| &i[middle..]));
-    rayon::join(|| in_pieces(chunk, low, low_inputs, update), || in_pieces(chunk, high, high_inputs, update));
+    parallel::join(
+        || in_pieces(chunk, low, low_inputs, update),
+        || in_pieces(chunk, high, high_inputs, update),
+    );
 }
 
 #[cfg(test)]
