@@ -642,7 +642,7 @@ impl<T: Real> RowSink<T> for SymplecticUpdate<'_, T> {
             for (((new_x, new_v), (&x, &v)), (&f, &w)) in
                 new.zip(x.iter().zip(v)).zip(f.iter().zip(inverse_masses))
             {
-                let velocity = v + f * w * h;
+                let velocity = (v + f * w * h).kept_speed();
                 *new_v = velocity;
                 *new_x = x + velocity * h;
             }

@@ -35,7 +35,7 @@ impl<T: Real> Euler<T> {
         for ((x, v), a) in axes.zip(self.accelerations.axes()) {
             for ((x, v), &a) in x.iter_mut().zip(v.iter_mut()).zip(a) {
                 *x += *v * h;
-                *v += a * h;
+                *v = (*v + a * h).kept_speed();
             }
         }
     }
@@ -58,7 +58,7 @@ impl<T: Real> Euler<T> {
         let axes = state.positions.axes_mut().into_iter().zip(state.velocities.axes_mut());
         for ((x, v), a) in axes.zip(self.accelerations.axes()) {
             for ((x, v), &a) in x.iter_mut().zip(v.iter_mut()).zip(a) {
-                *v += a * h;
+                *v = (*v + a * h).kept_speed();
                 *x += *v * h;
             }
         }

@@ -161,7 +161,7 @@ impl<T: Real> AccelerationRows<T, 6> for Last<'_, T> {
                 let v0 = v[i];
                 x[i] += (v0 + (v1[i] + v2[i]) * two + v3[i]) * sixth;
                 let increments = (v1[i] - v0) + (v2[i] - v0) * two + (v3[i] - v0);
-                v[i] = v0 + increments * third + f[i] * w[i] * sixth;
+                v[i] = (v0 + increments * third + f[i] * w[i] * sixth).kept_speed();
             }
         }
     }

@@ -46,9 +46,9 @@ impl<T: Real> Verlet<T> {
         let axes = state.positions.axes_mut().into_iter().zip(state.velocities.axes_mut());
         for (((x, v), u), a) in axes.zip(self.drift.axes_mut()).zip(self.accelerations.axes()) {
             for (((x, v), u), &a) in x.iter_mut().zip(v.iter_mut()).zip(u.iter_mut()).zip(a) {
-                *u = (*v - a * half) * keep + a * h;
+                *u = ((*v - a * half) * keep + a * h).kept_speed();
                 *x += *u * h;
-                *v = *u + a * half;
+                *v = (*u + a * half).kept_speed();
             }
         }
         let end = t + h.to_f64();
@@ -56,7 +56,7 @@ impl<T: Real> Verlet<T> {
         let axes = state.velocities.axes_mut().into_iter().zip(self.drift.axes());
         for ((v, u), a) in axes.zip(self.accelerations.axes()) {
             for ((v, &u), &a) in v.iter_mut().zip(u).zip(a) {
-                *v = u + a * half;
+                *v = (u + a * half).kept_speed();
             }
         }
         self.primed = true;

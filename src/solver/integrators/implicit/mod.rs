@@ -165,7 +165,7 @@ impl<T: Real> Implicit<T> {
         let axes = state.positions.axes_mut().into_iter().zip(state.velocities.axes_mut());
         for ((x, v), dv) in axes.zip(delta_v) {
             for ((x, v), &dv) in x.iter_mut().zip(v.iter_mut()).zip(dv) {
-                *v += dv;
+                *v = (*v + dv).kept_speed();
                 *x += *v * h;
             }
         }
