@@ -161,3 +161,37 @@ pub(crate) fn in_bands<R: Rows>(
     }
     split(rows, 0, n_rows, width, band, work);
 }
+
+#[cfg(test)]
+mod tests {
+    use std::sync::atomic::{AtomicUsize, Ordering};
+
+    use super::join;
+
+    /// Sums `1..=n` by joining halves down to single numbers, counting the leaves run.
+    fn joined_sum(range: std::ops::Range<u64>, leaves: &AtomicUsize) -> u64 {
+        if range.end - range.start == 1 {
+            leaves.fetch_add(1, Ordering::Relaxed);
+            return range.start;
+        }
+        let middle = range.start + (range.end - range.start) / 2;
+        let (low, high) =
+            join(|| joined_sum(range.start..middle, leaves), || joined_sum(middle..range.end, leaves));
+        low + high
+    }
+
+    #[test]
+    fn join_runs_each_half_once_and_returns_both_results_on_any_pool() {
+        for threads in [1, 2, 3] {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            let leaves = AtomicUsize::new(0);
+            let sum = pool.install(|| joined_sum(1..1001, &leaves));
+            assert_eq!(sum, 500_500, "{threads} threads");
+            assert_eq!(leaves.load(Ordering::Relaxed), 1000, "{threads} threads");
+        }
+        // Outside any pool, as `rayon::join` does, on the global pool.
+        let leaves = AtomicUsize::new(0);
+        assert_eq!(joined_sum(1..65, &leaves), 2080);
+        assert_eq!(leaves.load(Ordering::Relaxed), 64);
+    }
+}
