@@ -54,7 +54,7 @@ pub fn install<R: Send>(work: impl FnOnce() -> R + Send) -> R {
 /// long as it took itself.
 ///
 /// A pass takes tens to hundreds of microseconds. A pool thread that finds no work goes to sleep
-/// after some ten microseconds, and waking it takes twenty to fifty on a virtual machine. Without
+/// after some ten microseconds, and waking it takes twenty to sixty on a virtual machine. Without
 /// the wait, the thread that finishes first falls asleep, the pass ends only once it is woken,
 /// and the next pass starts with its other thread asleep: two wake-ups a step, which cost a 128²
 /// cloth a third of its step in `f64`. A half that no other thread has taken is run by the caller
@@ -168,7 +168,7 @@ mod tests {
 
     use super::join;
 
-    /// Sums `1..=n` by joining halves down to single numbers, counting the leaves run.
+    /// The sum of `range`, by joining halves down to single numbers, counting the leaves run.
     fn joined_sum(range: std::ops::Range<u64>, leaves: &AtomicUsize) -> u64 {
         if range.end - range.start == 1 {
             leaves.fetch_add(1, Ordering::Relaxed);
