@@ -166,7 +166,7 @@ pub(crate) fn in_bands<R: Rows>(
 mod tests {
     use std::sync::atomic::{AtomicUsize, Ordering};
 
-    use super::join;
+    use super::{in_bands, join};
 
     /// The sum of `range`, by joining halves down to single numbers, counting the leaves run.
     fn joined_sum(range: std::ops::Range<u64>, leaves: &AtomicUsize) -> u64 {
@@ -178,6 +178,23 @@ mod tests {
         let (low, high) =
             join(|| joined_sum(range.start..middle, leaves), || joined_sum(middle..range.end, leaves));
         low + high
+    }
+
+    #[test]
+    fn bands_cover_every_row_once_whatever_their_size() {
+        let input: Vec<f64> = (0..37).map(|k| k as f64 * 0.5).collect();
+        for band in [1, 3, 8, 36, 37, 100] {
+            let (mut output, mut rows) = (vec![1.0; 37], vec![0; 37]);
+            in_bands(([&mut output[..]], [&mut rows[..]]), 37, 1, band, &|first, count, ([out], [rows])| {
+                for k in 0..count {
+                    out[k] += 2.0 * input[first + k];
+                    rows[k] += first + k;
+                }
+            });
+            let expected: Vec<f64> = input.iter().map(|i| 1.0 + 2.0 * i).collect();
+            assert_eq!(output, expected, "bands of {band}");
+            assert_eq!(rows, (0..37).collect::<Vec<_>>(), "bands of {band}");
+        }
     }
 
     #[test]

@@ -106,10 +106,13 @@ impl<T: Real> Pass<'_, T> {
             return;
         };
         self.dynamics.forces(x, v, t, forces);
-        let [fx, fy, fz] = forces.axes();
-        let inputs = [fx, fy, fz, &self.dynamics.inverse_masses[..]];
-        in_pieces(self.chunk, outputs, inputs, &|first, outputs, [fx, fy, fz, inverse_masses]| {
-            update.take(first..first + fx.len(), [fx, fy, fz], inverse_masses, outputs);
+        let forces = forces.axes();
+        let inverse_masses = &self.dynamics.inverse_masses[..];
+        // Each particle's update depends on that particle alone: the cut never changes a result.
+        parallel::in_bands(outputs, inverse_masses.len(), 1, self.chunk, &|first, count, outputs| {
+            let piece = first..first + count;
+            let forces = forces.map(|axis| &axis[piece.clone()]);
+            update.take(piece.clone(), forces, &inverse_masses[piece], outputs);
         });
     }
 }
@@ -165,44 +168,6 @@ impl<T: Real> AccelerationRows<T, 6> for Last<'_, T> {
             }
         }
     }
-}
-
-/// Runs `update(first, outputs, inputs)` on the particles' outputs and inputs (one axis each,
-/// all of one length) from particle `first`, cut in halves run side by side on the solver's
-/// threads ([`parallel::join`], which allocates nothing) until a piece has at most `chunk`
-/// particles. Each particle's update depends on that particle alone, so the cut never changes a
-/// result.
-fn in_pieces<T: Real, const O: usize, const I: usize>(
-    chunk: usize,
-    outputs: [&mut [T]; O],
-    inputs: [&[T]; I],
-    update: &(impl Fn(usize, [&mut [T]; O], [&[T]; I]) + Sync),
-) {
-    fn split<T: Real, const O: usize, const I: usize>(
-        chunk: usize,
-        first: usize,
-        outputs: [&mut [T]; O],
-        inputs: [&[T]; I],
-        update: &(impl Fn(usize, [&mut [T]; O], [&[T]; I]) + Sync),
-    ) {
-        let n = inputs[0].len();
-        if n <= chunk {
-            update(first, outputs, inputs);
-            return;
-        }
-        let middle = n.div_ceil(2);
-        let mut low: [&mut [T]; O] = [(); O].map(|_| Default::default());
-        let mut high: [&mut [T]; O] = [(); O].map(|_| Default::default());
-        for ((low, high), output) in low.iter_mut().zip(&mut high).zip(outputs) {
-            (*low, *high) = output.split_at_mut(middle);
-        }
-        let (low_inputs, high_inputs) = (inputs.map(|i| &i[..middle]), inputs.map(|i| &i[middle..]));
-        parallel::join(
-            || split(chunk, first, low, low_inputs, update),
-            || split(chunk, first + middle, high, high_inputs, update),
-        );
-    }
-    split(chunk, 0, outputs, inputs, update);
 }
 
 #[cfg(test)]
@@ -311,22 +276,6 @@ mod tests {
                 (v - v_expected).length() <= 4.0 * f64::EPSILON * speed,
                 "v of {p}: {v:?} against {v_expected:?}"
             );
-        }
-    }
-
-    #[test]
-    fn pieces_cover_every_particle_once_whatever_their_size() {
-        let input: Vec<f64> = (0..37).map(|k| k as f64 * 0.5).collect();
-        for chunk in [1, 3, 8, 36, 37, 100] {
-            let mut output = vec![1.0; 37];
-            in_pieces(chunk, [&mut output[..]], [&input[..]], &|first, [out], [input]| {
-                for (k, (o, &i)) in out.iter_mut().zip(input).enumerate() {
-                    *o += 2.0 * i + 100.0 * (first + k) as f64;
-                }
-            });
-            let expected: Vec<f64> =
-                input.iter().enumerate().map(|(k, i)| 1.0 + 2.0 * i + 100.0 * k as f64).collect();
-            assert_eq!(output, expected, "pieces of {chunk}");
         }
     }
 }
