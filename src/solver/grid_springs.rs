@@ -20,6 +20,12 @@
 //! does not own. Every particle's force is therefore summed in the same order, by the same
 //! operations, whatever the number of bands: results do not depend on the thread count.
 //!
+//! A grid too small to need its bands (a 32² cloth) still gains from them when the other
+//! threads are idle, as for one job alone, but loses when they are busy, as in a sweep of small
+//! jobs, where every thread runs a job of its own: its recomputed rows and the threads taking
+//! each other's bands cost more than they give. Such a grid shares its bands out only while
+//! another thread takes one ([`Sharing`]).
+//!
 //! The result is the same force as the general spring-list loop, summed in a different, fixed
 //! order: deterministic, and equal to it up to rounding.
 
@@ -88,6 +94,59 @@ pub(crate) struct GridSprings<T> {
     springs: Range<usize>,
     layout: Layout<T>,
     bands: Vec<Band<T>>,
+    /// For a grid whose bands are optional, the one band it runs in while no other thread takes
+    /// a band (empty otherwise).
+    whole: Vec<Band<T>>,
+    /// For such a grid, whether its next pass runs in bands.
+    sharing: Option<Sharing>,
+}
+
+/// How a grid whose bands are optional runs a pass: in its bands while another thread takes one,
+/// whole otherwise. [`MISSES`] passes in a row in bands whose other half no thread took send the
+/// grid back to its whole band for [`RETRY_PASSES`] passes, after which it offers its bands
+/// again: a grid beside busy threads pays for its bands on a few passes in every so many. More
+/// than one miss is needed because a pool thread that had fallen asleep is only woken by the
+/// first offer, too late to take it.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+struct Sharing {
+    passes_until_retry: u32,
+    misses: u32,
+}
+
+/// The passes in a row whose bands no other thread took before a grid whose bands are optional
+/// runs whole, and the passes it then runs whole.
+const MISSES: u32 = 16;
+const RETRY_PASSES: u32 = 256;
+
+/// The fewest particles and rows (in spans of a spring, `reach + 1` rows) of a band: a grid
+/// with bands this large always runs in them.
+const BAND_PARTICLES: usize = parallel::MIN_PARTICLES_PER_BAND;
+const BAND_SPANS: usize = 8;
+
+/// The same for a grid whose bands are optional: a band of 512 particles of a cloth's step is
+/// some 5 µs of work, several times what handing it to an awake thread costs.
+const OPTIONAL_BAND_PARTICLES: usize = 512;
+const OPTIONAL_BAND_SPANS: usize = 4;
+
+impl Sharing {
+    /// Whether the next pass runs in bands.
+    fn splits(&self) -> bool {
+        self.passes_until_retry == 0
+    }
+
+    /// Records a pass: whether it ran in bands, and if so whether another thread took one.
+    fn after_pass(&mut self, split: bool, side_by_side: bool) {
+        if !split {
+            self.passes_until_retry -= 1;
+        } else if side_by_side {
+            self.misses = 0;
+        } else {
+            self.misses += 1;
+            if self.misses == MISSES {
+                *self = Self { passes_until_retry: RETRY_PASSES, misses: 0 };
+            }
+        }
+    }
 }
 
 /// What the body forces and the accelerations need from outside the grid: the particles'
@@ -146,24 +205,48 @@ impl<T: Real> GridSprings<T> {
         }
         let reach = families.iter().map(|f| f.offsets[1].max(f.offsets[3])).max().unwrap_or(0);
         let layout = Layout { nx, ny, families, reach };
-        let count = parallel::band_count(ny, nx * ny, 8 * (reach + 1));
-        Some(Self::with_bands(grid.first_particle, grid.springs.clone(), layout, count))
+        let (particles, span) = (nx * ny, reach + 1);
+        let needed = parallel::band_count_of_at_least(ny, particles, BAND_SPANS * span, BAND_PARTICLES);
+        let optional = parallel::band_count_of_at_least(
+            ny,
+            particles,
+            OPTIONAL_BAND_SPANS * span,
+            OPTIONAL_BAND_PARTICLES,
+        );
+        let (first, springs) = (grid.first_particle, grid.springs.clone());
+        Some(if needed == 1 && optional > 1 {
+            Self::with_optional_bands(first, springs, layout, optional)
+        } else {
+            Self::with_bands(first, springs, layout, needed)
+        })
     }
 
     /// The evaluator cut into `count` bands of rows (at most one per row).
     fn with_bands(first: usize, springs: Range<usize>, layout: Layout<T>, count: usize) -> Self {
-        let ny = layout.ny.max(1);
-        let band_rows = ny.div_ceil(count.clamp(1, ny.min(MAX_BANDS)));
-        let bands = (0..ny.div_ceil(band_rows))
-            .map(|b| Band {
-                rows: b * band_rows..((b + 1) * band_rows).min(layout.ny),
-                ring: std::array::from_fn(|_| vec![T::ZERO; (layout.reach + 2) * layout.stride()]),
-                staged: std::array::from_fn(|_| vec![T::ZERO; layout.stride()]),
-                columns: std::array::from_fn(|_| vec![T::ZERO; layout.nx]),
-                sums: (T::ZERO, T::ZERO),
-            })
-            .collect();
-        Self { first, springs, layout, bands }
+        let bands = bands(&layout, count);
+        Self { first, springs, layout, bands, whole: Vec::new(), sharing: None }
+    }
+
+    /// The evaluator cut into `count` bands of rows that it runs in only while another thread
+    /// takes one.
+    fn with_optional_bands(first: usize, springs: Range<usize>, layout: Layout<T>, count: usize) -> Self {
+        let whole = bands(&layout, 1);
+        let sharing = Some(Sharing::default());
+        Self { whole, sharing, ..Self::with_bands(first, springs, layout, count) }
+    }
+
+    /// Runs one pass, `run(layout, bands)`, over the bands the grid runs in now, which `run`
+    /// reports whether another thread took one of; returns those bands.
+    fn pass(&mut self, run: impl FnOnce(&Layout<T>, &mut [Band<T>]) -> bool) -> &[Band<T>] {
+        let Some(sharing) = &mut self.sharing else {
+            run(&self.layout, &mut self.bands);
+            return &self.bands;
+        };
+        let split = sharing.splits();
+        let bands = if split { &mut self.bands } else { &mut self.whole };
+        let side_by_side = run(&self.layout, bands);
+        sharing.after_pass(split, side_by_side);
+        bands
     }
 
     /// The particles of the body.
@@ -180,9 +263,11 @@ impl<T: Real> GridSprings<T> {
     pub fn add_forces(&mut self, x: &Vectors<T>, v: &Vectors<T>, forces: &mut Vectors<T>) {
         let range = self.particles();
         let (x, v) = (x.range(range.clone()), v.range(range.clone()));
-        let (nx, layout) = (self.layout.nx, &self.layout);
-        in_bands(&mut self.bands, nx, forces.range_mut(range), &|band, out| {
-            band.sweep(layout, x, v, &mut AddTo { nx, out });
+        let nx = self.layout.nx;
+        self.pass(|layout, bands| {
+            in_bands(bands, nx, forces.range_mut(range), &|band, out| {
+                band.sweep(layout, x, v, &mut AddTo { nx, out });
+            })
         });
     }
 
@@ -216,13 +301,15 @@ impl<T: Real> GridSprings<T> {
         let (x, v) = (x.range(range.clone()), v.range(range.clone()));
         let masses = &inputs.masses[range.clone()];
         let inverse_masses = &inputs.inverse_masses[range.clone()];
-        let (nx, layout, first) = (self.layout.nx, &self.layout, self.first);
-        in_bands(&mut self.bands, nx, outputs, &|band, outputs| {
-            let offset = band.rows.start * nx;
-            let body =
-                BodyForce { offset, nx, v, masses, gravity: inputs.gravity.to_array(), drag: inputs.drag };
-            let sink = &mut Accelerations { body, first, inverse_masses, outputs, update };
-            band.sweep(layout, x, v, sink);
+        let (nx, first) = (self.layout.nx, self.first);
+        self.pass(|layout, bands| {
+            in_bands(bands, nx, outputs, &|band, outputs| {
+                let offset = band.rows.start * nx;
+                let gravity = inputs.gravity.to_array();
+                let body = BodyForce { offset, nx, v, masses, gravity, drag: inputs.drag };
+                let sink = &mut Accelerations { body, first, inverse_masses, outputs, update };
+                band.sweep(layout, x, v, sink);
+            })
         });
     }
 
@@ -241,44 +328,66 @@ impl<T: Real> GridSprings<T> {
         let (x, v) = (state.positions.range(range.clone()), state.velocities.range(range.clone()));
         let masses = &inputs.masses[range.clone()];
         let inverse_masses = &inputs.inverse_masses[range.clone()];
-        let (nx, layout) = (self.layout.nx, &self.layout);
+        let nx = self.layout.nx;
         let [px, py, pz] = next.positions.range_mut(range.clone());
         let [vx, vy, vz] = next.velocities.range_mut(range);
-        in_bands(&mut self.bands, nx, [px, py, pz, vx, vy, vz], &|band, [px, py, pz, vx, vy, vz]| {
-            let mut sink = SymplecticUpdate {
-                offset: band.rows.start * nx,
-                nx,
-                x,
-                v,
-                masses,
-                inverse_masses,
-                gravity: inputs.gravity.to_array(),
-                drag: inputs.drag,
-                h,
-                positions: [px, py, pz],
-                velocities: [vx, vy, vz],
-                columns: band.take_columns(),
-            };
-            band.sweep(layout, x, v, &mut sink);
-            band.put_back_columns(sink.columns);
+        let outputs = [px, py, pz, vx, vy, vz];
+        let bands = self.pass(|layout, bands| {
+            in_bands(bands, nx, outputs, &|band, [px, py, pz, vx, vy, vz]| {
+                let mut sink = SymplecticUpdate {
+                    offset: band.rows.start * nx,
+                    nx,
+                    x,
+                    v,
+                    masses,
+                    inverse_masses,
+                    gravity: inputs.gravity.to_array(),
+                    drag: inputs.drag,
+                    h,
+                    positions: [px, py, pz],
+                    velocities: [vx, vy, vz],
+                    columns: band.take_columns(),
+                };
+                band.sweep(layout, x, v, &mut sink);
+                band.put_back_columns(sink.columns);
+            })
         });
         // Band by band, in order: the same sums whichever thread ran which band.
-        self.bands.iter().fold((T::ZERO, T::ZERO), |(k, p), band| (k + band.sums.0, p + band.sums.1))
+        bands.iter().fold((T::ZERO, T::ZERO), |(k, p), band| (k + band.sums.0, p + band.sums.1))
     }
+}
+
+/// The bands of a grid's layout cut into `count` bands of rows (at most one per row).
+fn bands<T: Real>(layout: &Layout<T>, count: usize) -> Vec<Band<T>> {
+    let ny = layout.ny.max(1);
+    let band_rows = ny.div_ceil(count.clamp(1, ny.min(MAX_BANDS)));
+    (0..ny.div_ceil(band_rows))
+        .map(|b| Band {
+            rows: b * band_rows..((b + 1) * band_rows).min(layout.ny),
+            ring: std::array::from_fn(|_| vec![T::ZERO; (layout.reach + 2) * layout.stride()]),
+            staged: std::array::from_fn(|_| vec![T::ZERO; layout.stride()]),
+            columns: std::array::from_fn(|_| vec![T::ZERO; layout.nx]),
+            sums: (T::ZERO, T::ZERO),
+        })
+        .collect()
 }
 
 /// Runs `work` on every band with its rows' part of `outputs` (rows of `nx` particles from the
 /// first band's), the bands side by side on the solver's threads: halves of the bands are joined
-/// ([`parallel::join`]), which allocates nothing.
+/// ([`parallel::join`]), which allocates nothing. Returns whether the first split's halves ran
+/// side by side.
 fn in_bands<T: Send, const O: usize>(
     bands: &mut [Band<T>],
     nx: usize,
     outputs: [&mut [T]; O],
     work: &(impl Fn(&mut Band<T>, [&mut [T]; O]) + Sync),
-) {
+) -> bool {
     match bands {
-        [] => return,
-        [band] => return work(band, outputs),
+        [] => return false,
+        [band] => {
+            work(band, outputs);
+            return false;
+        }
         _ => {}
     }
     let middle = bands.len() / 2;
@@ -289,7 +398,11 @@ fn in_bands<T: Send, const O: usize>(
     for ((low, high), output) in low.iter_mut().zip(&mut high).zip(outputs) {
         (*low, *high) = output.split_at_mut(split);
     }
-    parallel::join(|| in_bands(low_bands, nx, low, work), || in_bands(high_bands, nx, high, work));
+    let (_, side_by_side) = parallel::join_side_by_side(
+        || in_bands(low_bands, nx, low, work),
+        || in_bands(high_bands, nx, high, work),
+    );
+    side_by_side
 }
 
 /// What a pass computing accelerations row by row does with each row of them, given the row's
@@ -809,6 +922,52 @@ mod tests {
             let (xs, vs, _) = step(count);
             assert_eq!((&xs, &vs), (&x1, &v1), "{count} bands");
         }
+    }
+
+    #[test]
+    fn a_grid_whose_bands_are_optional_steps_as_its_whole_band_does_in_either_mode() {
+        let (model, x, v) = moving_cloth();
+        let n = x.len();
+        let (masses, inverse_masses) = masses(n);
+        let inputs = body_terms(&masses, &inverse_masses);
+        let grid = banded(&model, 1);
+        let mut sharing = GridSprings::with_optional_bands(grid.first, grid.springs.clone(), grid.layout, 3);
+        let mut whole = banded(&model, 1);
+        assert_eq!(sharing.bands.len(), 3);
+        let mut a = State { positions: x.clone(), velocities: v.clone() };
+        let mut b = a.clone();
+        let mut next = State { positions: Vectors::zeros(n), velocities: Vectors::zeros(n) };
+        for step in 0..6 {
+            // Even steps in the bands, odd steps whole.
+            sharing.sharing = Some(Sharing { passes_until_retry: step % 2, misses: 0 });
+            sharing.symplectic_step(&inputs, 1e-4, &a, &mut next);
+            std::mem::swap(&mut a, &mut next);
+            whole.symplectic_step(&inputs, 1e-4, &b, &mut next);
+            std::mem::swap(&mut b, &mut next);
+            assert_eq!((&a.positions, &a.velocities), (&b.positions, &b.velocities), "step {step}");
+        }
+        assert_ne!(a.positions, x, "the cloth moved");
+    }
+
+    #[test]
+    fn optional_bands_go_whole_after_offers_no_thread_takes_and_are_offered_again() {
+        let mut sharing = Sharing::default();
+        assert!(sharing.splits(), "a grid starts in its bands");
+        for _ in 1..MISSES {
+            sharing.after_pass(true, false);
+            assert!(sharing.splits(), "a few misses may be a thread waking up");
+        }
+        sharing.after_pass(true, true);
+        for _ in 1..MISSES {
+            sharing.after_pass(true, false);
+        }
+        assert!(sharing.splits(), "a taken offer clears the misses before it");
+        sharing.after_pass(true, false);
+        for pass in 0..RETRY_PASSES {
+            assert!(!sharing.splits(), "whole on pass {pass}");
+            sharing.after_pass(false, false);
+        }
+        assert_eq!(sharing, Sharing::default(), "the bands are offered again, with no misses counted");
     }
 
     #[test]

@@ -5,8 +5,10 @@
 //! (see [`spring_runs`](super::spring_runs)). Each band recomputes the few rows of springs it
 //! shares with its neighbours instead of exchanging partial sums, so every particle's force is
 //! summed in the same order whatever the number of bands: a result does not depend on how many
-//! threads computed it. A scene too small to pay for the hand-off stays in one band. Passes that
-//! compute each row alone (the implicit solver's) cut their row-major arrays with [`in_bands`].
+//! threads computed it. A scene too small to pay for the hand-off stays in one band; a cloth
+//! somewhat larger runs in bands only while another thread takes one ([`join_side_by_side`]
+//! tells). Passes that compute each row alone (the implicit solver's) cut their row-major arrays
+//! with [`in_bands`].
 //!
 //! A run should execute inside the pool ([`install`]), so that handing a band to the other
 //! threads is a push onto a work-stealing deque rather than a wake-up. When every pool thread is
@@ -61,13 +63,22 @@ pub fn install<R: Send>(work: impl FnOnce() -> R + Send) -> R {
 /// after the first, as `rayon::join` does, and nothing waits for it. Only a step's passes join
 /// this way; work that runs for long (a run beside its companions) uses `rayon::join`.
 pub fn join<A: Send, B: Send>(left: impl FnOnce() -> A + Send, right: impl FnOnce() -> B + Send) -> (A, B) {
+    join_side_by_side(left, right).0
+}
+
+/// [`join`], also telling whether the two halves ran side by side, the right one taken by
+/// another thread.
+pub(crate) fn join_side_by_side<A: Send, B: Send>(
+    left: impl FnOnce() -> A + Send,
+    right: impl FnOnce() -> B + Send,
+) -> ((A, B), bool) {
     const NOT_TAKEN: u8 = 0;
     const RUNNING: u8 = 1;
     const DONE: u8 = 2;
     // The flags only decide how long a thread spins; the join itself publishes the halves' data.
     let right_state = AtomicU8::new(NOT_TAKEN);
     let left_done = AtomicBool::new(false);
-    rayon::join_context(
+    let (left, (right, taken)) = rayon::join_context(
         |_| {
             let start = Instant::now();
             let left = left();
@@ -77,16 +88,17 @@ pub fn join<A: Send, B: Send>(left: impl FnOnce() -> A + Send, right: impl FnOnc
         },
         |context| {
             if !context.migrated() {
-                return right();
+                return (right(), false);
             }
             right_state.store(RUNNING, Ordering::Relaxed);
             let start = Instant::now();
             let right = right();
             right_state.store(DONE, Ordering::Relaxed);
             spin_while(start.elapsed(), || !left_done.load(Ordering::Relaxed));
-            right
+            (right, true)
         },
-    )
+    );
+    ((left, right), taken)
 }
 
 /// Spins while `busy()` holds, for at most `budget`.
@@ -103,8 +115,18 @@ fn spin_while(budget: Duration, busy: impl Fn() -> bool) {
 /// pool thread, as long as each band keeps at least [`MIN_PARTICLES_PER_BAND`] particles and
 /// `min_rows` rows.
 pub fn band_count(rows: usize, particles: usize, min_rows: usize) -> usize {
+    band_count_of_at_least(rows, particles, min_rows, MIN_PARTICLES_PER_BAND)
+}
+
+/// [`band_count`] with bands of at least `min_particles` particles.
+pub(crate) fn band_count_of_at_least(
+    rows: usize,
+    particles: usize,
+    min_rows: usize,
+    min_particles: usize,
+) -> usize {
     let threads = pool().current_num_threads();
-    let by_size = particles / MIN_PARTICLES_PER_BAND;
+    let by_size = particles / min_particles.max(1);
     let by_rows = rows / min_rows.max(1);
     threads.min(by_size).min(by_rows).max(1)
 }
