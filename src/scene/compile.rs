@@ -144,6 +144,7 @@ impl Scene {
             colliders: self.colliders.iter().map(collider).collect(),
             strain_limit: self.strain_limit,
             self_collision: self.self_collision.map(|s| s.thickness),
+            max_self_collision_pairs: usize::MAX,
         };
         Compiled {
             model,

@@ -4,13 +4,15 @@
 //! Every field but `duration` and `bodies` has a default, stated on the field. Unknown fields are
 //! refused. [`Scene::from_json`] returns either a scene in which every number is finite and
 //! within its physical range, or every problem found, each naming its field by JSON Pointer
-//! (RFC 6901). This module knows the solver's inputs but nothing of HTTP.
+//! (RFC 6901). An integer field takes any number with no fractional part (`39` or `39.0`), as
+//! JSON Schema's `integer` does. This module knows the solver's inputs but nothing of HTTP.
 
 mod compile;
 mod error;
 mod parse;
 mod types;
 mod validate;
+mod whole;
 
 pub use compile::{BodyInfo, Compiled, DtSource};
 pub use error::{FieldError, SceneError};

@@ -58,6 +58,9 @@ fn each_bad_field_is_named_by_its_pointer() {
         (with("/verlet_damping", json!(1.0)), &["/verlet_damping"]),
         (with("/solver", json!({"tolerance": 0})), &["/solver/tolerance"]),
         (with("/solver", json!({"max_iterations": 0})), &["/solver/max_iterations"]),
+        (with("/solver", json!({"tolerance": 1e-13})), &["/solver/tolerance"]),
+        (with("/solver", json!({"tolerance": 0.2})), &["/solver/tolerance"]),
+        (with("/solver", json!({"max_iterations": 10_001})), &["/solver/max_iterations"]),
         (with("/solver", json!({"tol": 1e-3})), &["/solver/tol"]),
         (with("/stop_at_rest", json!(0)), &["/stop_at_rest"]),
         (with("/colour", json!("red")), &["/colour"]),
@@ -124,6 +127,28 @@ fn each_bad_field_is_named_by_its_pointer() {
                 json!({"type": "mesh", "vertices": [0, 0, 0, 1, 0, 0, 0, 1, 0], "triangles": [0, 1, 2], "springs": {"shear": {"k": 1}}}),
             ),
             &["/bodies/0/springs/shear"],
+        ),
+        (with("/gravity", json!([0, -1e7, 0])), &["/gravity"]),
+        (with("/drag", json!(1e31)), &["/drag"]),
+        (with("/bodies/0", json!({"type": "cloth", "center": [0, 6.35e136, 0]})), &["/bodies/0/center"]),
+        (with("/bodies/0", json!({"type": "cloth", "velocity": [2e6, 0, 0]})), &["/bodies/0/velocity"]),
+        (with("/bodies/0", json!({"type": "cloth", "size": [1, 2e6]})), &["/bodies/0/size/1"]),
+        (with("/bodies/0", json!({"type": "cloth", "mass": 5e-324})), &["/bodies/0/mass"]),
+        (
+            with("/bodies/0", json!({"type": "cloth", "springs": {"bending": {"k": 1e31}}})),
+            &["/bodies/0/springs/bending/k"],
+        ),
+        (
+            with(
+                "/bodies/0",
+                json!({"type": "mesh", "vertices": [0, 0, 0, 1, 0, 0, 0, 1e7, 0], "triangles": [0, 1, 2]}),
+            ),
+            &["/bodies/0/vertices"],
+        ),
+        (with("/colliders", json!([{"type": "plane", "normal": [1e-300, 0, 0]}])), &["/colliders/0/normal"]),
+        (
+            with("/colliders", json!([{"type": "sphere", "center": [0, 0, 0], "radius": 1e7}])),
+            &["/colliders/0/radius"],
         ),
         (with("/output", json!({"fps": 0})), &["/output/fps"]),
         (with("/output", json!({"frames": "some"})), &["/output/frames"]),
@@ -216,4 +241,81 @@ fn spring_counts_are_known_before_building() {
         let s = scene(json!({"duration": 1.0, "bodies": [body]})).unwrap();
         assert_eq!(s.bodies[0].spring_count(), s.compile().model.springs.len() as u64);
     }
+}
+
+#[test]
+fn integer_fields_take_integral_floats_and_refuse_fractions_at_their_pointer() {
+    let floats = json!({"duration": 1.0, "solver": {"max_iterations": 39.0}, "bodies": [
+        {"type": "cloth", "resolution": [4.0, 3.0], "pin": [[0.0, 0], [3, 2.0]]},
+        {"type": "chain", "count": 5.0, "pin": [4.0]},
+        {"type": "lattice", "resolution": [2.0, 2, 2e0], "pin": [[1.0, 1.0, 1.0]]},
+        {"type": "mesh", "vertices": [0, 0, 0, 1, 0, 0, 0, 1, 0], "triangles": [0.0, 1.0, 2.0], "pin": [2.0]}
+    ]});
+    let integers = json!({"duration": 1.0, "solver": {"max_iterations": 39}, "bodies": [
+        {"type": "cloth", "resolution": [4, 3], "pin": [[0, 0], [3, 2]]},
+        {"type": "chain", "count": 5, "pin": [4]},
+        {"type": "lattice", "resolution": [2, 2, 2], "pin": [[1, 1, 1]]},
+        {"type": "mesh", "vertices": [0, 0, 0, 1, 0, 0, 0, 1, 0], "triangles": [0, 1, 2], "pin": [2]}
+    ]});
+    let read = scene(floats).unwrap();
+    assert_eq!(read, scene(integers).unwrap());
+    assert_eq!(read.solver.max_iterations, 39);
+
+    let range = format!("expected a whole number from 0 to {}", usize::MAX);
+    let cases = [
+        (with("/solver", json!({"max_iterations": 39.5})), "/solver/max_iterations", "floating point `39.5`"),
+        (
+            with("/bodies/0", json!({"type": "cloth", "resolution": [4, 3.25]})),
+            "/bodies/0/resolution/1",
+            "floating point `3.25`",
+        ),
+        (
+            with("/bodies/0", json!({"type": "chain", "count": 1e300})),
+            "/bodies/0/count",
+            "floating point `1e+300`",
+        ),
+        (
+            with("/bodies/0", json!({"type": "chain", "pin": [0, -1.0]})),
+            "/bodies/0/pin/1",
+            "floating point `-1.0`",
+        ),
+        (
+            with("/bodies/0", json!({"type": "lattice", "pin": [[0, 0, 0.5]]})),
+            "/bodies/0/pin/0/2",
+            "floating point `0.5`",
+        ),
+        (
+            with("/bodies/0", json!({"type": "mesh", "vertices": [0, 0, 0], "triangles": [0, 0.1, 0]})),
+            "/bodies/0/triangles/1",
+            "floating point `0.1`",
+        ),
+    ];
+    for (document, pointer, value) in cases {
+        let error = scene(document.clone()).expect_err(&format!("accepted {document}"));
+        let errors = error.field_errors();
+        assert_eq!(errors.len(), 1, "{error}");
+        assert_eq!(errors[0].pointer, pointer, "{document}");
+        assert_eq!(errors[0].detail, format!("invalid value: {value}, {range}"), "{document}");
+    }
+}
+
+/// The edges of every range a scene may use still compile to a model whose first frame is
+/// finite in single precision, so that no number out of range reaches a result as `null`.
+#[test]
+fn the_widest_valid_scene_starts_finite_in_single_precision() {
+    let extreme = json!({
+        "duration": 1e-30, "precision": "f32", "gravity": [1e6, -1e6, 1e6], "drag": 1e30,
+        "bodies": [
+            {"type": "cloth", "resolution": [3, 3], "size": [1e6, 1e-30], "center": [1e6, -1e6, 1e6],
+             "mass": 1e-30, "velocity": [-1e6, 1e6, -1e6],
+             "springs": {"structural": {"k": 1e30, "damping": 1e30}, "shear": {"k": 1e-30}}},
+            {"type": "lattice", "resolution": [2, 2, 2], "size": [1e-30, 1e6, 1e-30], "center": [-1e6, 1e6, -1e6],
+             "mass": 1e30}
+        ]
+    });
+    let compiled = scene(extreme).unwrap().compile();
+    let positions = compiled.model.positions.iter().flat_map(|p| p.to_array());
+    assert!(positions.clone().count() > 0);
+    assert!(positions.map(|x| x as f32).all(f32::is_finite));
+    assert!(compiled.model.masses.iter().all(|&m| (m as f32).is_normal()));
 }

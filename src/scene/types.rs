@@ -2,6 +2,8 @@
 
 use serde::Deserialize;
 
+use super::whole;
+
 /// A scene: the bodies, the forces on them, how to integrate and what to record.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Scene {
@@ -138,6 +140,7 @@ pub struct SolverSettings {
     /// Relative residual at which a solve stops, in (0, 1) (default 1e-6).
     pub tolerance: f64,
     /// Iteration cap per solve, at least 1 (default 200).
+    #[serde(deserialize_with = "whole::one")]
     pub max_iterations: usize,
 }
 
@@ -284,6 +287,7 @@ pub struct ClothSpec {
     /// Extent, in metres (default `[1, 1]`).
     pub size: [f64; 2],
     /// Particles along each side, each at least 2 (default `[32, 32]`).
+    #[serde(deserialize_with = "whole::array")]
     pub resolution: [usize; 2],
     /// Centre, in metres (default `[0, 1, 0]`).
     pub center: [f64; 3],
@@ -296,6 +300,7 @@ pub struct ClothSpec {
     /// Spring families.
     pub springs: GridSprings,
     /// Pinned particles as `[i, j]`.
+    #[serde(deserialize_with = "whole::list_of_arrays")]
     pub pin: Vec<[usize; 2]>,
 }
 
@@ -346,6 +351,7 @@ pub struct ChainSpec {
     /// Last particle, in metres (default `[1, 1, 0]`).
     pub end: [f64; 3],
     /// Particles, at least 2 (default 10).
+    #[serde(deserialize_with = "whole::one")]
     pub count: usize,
     /// Total mass, in kg (default 0.1).
     pub mass: f64,
@@ -354,6 +360,7 @@ pub struct ChainSpec {
     /// The links (default k 100, damping 0).
     pub spring: ChainSpring,
     /// Pinned particle indices.
+    #[serde(deserialize_with = "whole::list")]
     pub pin: Vec<usize>,
 }
 
@@ -381,6 +388,7 @@ pub struct LatticeSpec {
     /// Extent, in metres (default `[0.2, 0.2, 0.2]`).
     pub size: [f64; 3],
     /// Particles along each axis, each at least 2 (default `[6, 6, 6]`).
+    #[serde(deserialize_with = "whole::array")]
     pub resolution: [usize; 3],
     /// Centre, in metres (default `[0, 0.5, 0]`).
     pub center: [f64; 3],
@@ -391,6 +399,7 @@ pub struct LatticeSpec {
     /// Spring families.
     pub springs: GridSprings,
     /// Pinned particles as `[i, j, k]`.
+    #[serde(deserialize_with = "whole::list_of_arrays")]
     pub pin: Vec<[usize; 3]>,
 }
 
@@ -419,6 +428,7 @@ pub struct MeshSpec {
     /// Flat vertex coordinates `[x0, y0, z0, x1, ...]`, in metres (required).
     pub vertices: Vec<f64>,
     /// Flat vertex indices, three per triangle (required).
+    #[serde(deserialize_with = "whole::list")]
     pub triangles: Vec<usize>,
     /// Total mass, spread by area, in kg (default 0.5).
     #[serde(default = "default_mesh_mass")]
@@ -430,7 +440,7 @@ pub struct MeshSpec {
     #[serde(default)]
     pub springs: MeshSprings,
     /// Pinned vertex indices.
-    #[serde(default)]
+    #[serde(default, deserialize_with = "whole::list")]
     pub pin: Vec<usize>,
 }
 

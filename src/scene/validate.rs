@@ -9,6 +9,23 @@ use super::types::{
 /// Collects problems, each at its JSON Pointer.
 struct Problems(Vec<FieldError>);
 
+/// The tightest linear-solver tolerance: relative residuals much below it are lost in the
+/// rounding of double precision, so a solve would only run to its iteration limit.
+pub const MIN_TOLERANCE: f64 = 1e-12;
+/// The loosest: a residual a tenth of the right-hand side is no longer a solution.
+pub const MAX_TOLERANCE: f64 = 0.1;
+/// The most conjugate-gradient iterations a step may take; with the multigrid preconditioner a
+/// solve takes tens, and more only prolongs a step that cannot converge.
+pub const MAX_ITERATIONS: usize = 10_000;
+/// The largest coordinate, speed or acceleration a scene may give, in metres and seconds: far
+/// beyond any drape, and small enough that distances, their squares and energies stay finite in
+/// single precision.
+pub const MAX_MAGNITUDE: f64 = 1e6;
+/// The range of every other positive quantity (masses, stiffnesses, times): wide enough for any
+/// physical unit, narrow enough that a mass shared among a million particles, its inverse and
+/// the product of two such quantities stay finite and nonzero in single precision.
+pub const POSITIVE_RANGE: std::ops::RangeInclusive<f64> = 1e-30..=1e30;
+
 impl Problems {
     fn add(&mut self, pointer: impl Into<String>, detail: impl Into<String>) {
         self.0.push(FieldError::new(pointer, detail));
@@ -22,21 +39,47 @@ impl Problems {
         ok
     }
 
+    /// Finite, and no component beyond [`MAX_MAGNITUDE`]: a position, velocity or acceleration.
+    fn vector(&mut self, pointer: &str, values: &[f64]) -> bool {
+        if !self.finite(pointer, values) {
+            return false;
+        }
+        let ok = values.iter().all(|v| v.abs() <= MAX_MAGNITUDE);
+        if !ok {
+            self.add(pointer, format!("every component must be within ±{MAX_MAGNITUDE:e}"));
+        }
+        ok
+    }
+
     fn positive(&mut self, pointer: &str, value: f64) {
         if self.finite(pointer, &[value]) && value <= 0.0 {
             self.add(pointer, format!("must be positive, got {value}"));
+        } else if value.is_finite() && !POSITIVE_RANGE.contains(&value) {
+            let (low, high) = POSITIVE_RANGE.into_inner();
+            self.add(pointer, format!("must be in [{low:e}, {high:e}], got {value:e}"));
+        }
+    }
+
+    /// Positive and no longer than [`MAX_MAGNITUDE`] metres.
+    fn length(&mut self, pointer: &str, value: f64) {
+        if value.is_finite() && value > MAX_MAGNITUDE {
+            self.add(pointer, format!("must be at most {MAX_MAGNITUDE:e} m, got {value:e}"));
+        } else {
+            self.positive(pointer, value);
         }
     }
 
     fn non_negative(&mut self, pointer: &str, value: f64) {
         if self.finite(pointer, &[value]) && value < 0.0 {
             self.add(pointer, format!("must not be negative, got {value}"));
+        } else if value > *POSITIVE_RANGE.end() {
+            self.add(pointer, format!("must be at most {:e}, got {value:e}", POSITIVE_RANGE.end()));
         }
     }
 
-    fn all_positive(&mut self, pointer: &str, values: &[f64]) {
+    fn lengths(&mut self, pointer: &str, values: &[f64]) {
         for (axis, &v) in values.iter().enumerate() {
-            self.positive(&format!("{pointer}/{axis}"), v);
+            self.length(&format!("{pointer}/{axis}"), v);
         }
     }
 
@@ -95,17 +138,25 @@ impl Scene {
         if let Some(dt) = self.dt {
             p.positive("/dt", dt);
         }
-        p.finite("/gravity", &self.gravity);
+        p.vector("/gravity", &self.gravity);
         p.non_negative("/drag", self.drag);
         if p.finite("/verlet_damping", &[self.verlet_damping]) && !(0.0..1.0).contains(&self.verlet_damping) {
             p.add("/verlet_damping", format!("must be in [0, 1), got {}", self.verlet_damping));
         }
         let tolerance = self.solver.tolerance;
-        if p.finite("/solver/tolerance", &[tolerance]) && !(tolerance > 0.0 && tolerance < 1.0) {
-            p.add("/solver/tolerance", format!("must be in (0, 1), got {tolerance}"));
+        if p.finite("/solver/tolerance", &[tolerance])
+            && !(MIN_TOLERANCE..=MAX_TOLERANCE).contains(&tolerance)
+        {
+            p.add(
+                "/solver/tolerance",
+                format!("must be in [{MIN_TOLERANCE:e}, {MAX_TOLERANCE}], got {tolerance}"),
+            );
         }
-        if self.solver.max_iterations == 0 {
-            p.add("/solver/max_iterations", "must be at least 1");
+        if !(1..=MAX_ITERATIONS).contains(&self.solver.max_iterations) {
+            p.add(
+                "/solver/max_iterations",
+                format!("must be in [1, {MAX_ITERATIONS}], got {}", self.solver.max_iterations),
+            );
         }
         if let Some(speed) = self.stop_at_rest {
             p.positive("/stop_at_rest", speed);
@@ -123,7 +174,7 @@ impl Scene {
             wind_problems(&mut p, wind);
         }
         if let Some(self_collision) = &self.self_collision {
-            p.positive("/self_collision/thickness", self_collision.thickness);
+            p.length("/self_collision/thickness", self_collision.thickness);
         }
         if let Some(limit) = self.strain_limit {
             p.positive("/strain_limit", limit);
@@ -181,35 +232,35 @@ fn body_problems(p: &mut Problems, at: &str, body: &Body) {
     let field = |name: &str| format!("{at}/{name}");
     match body {
         Body::Cloth(c) => {
-            p.all_positive(&field("size"), &c.size);
+            p.lengths(&field("size"), &c.size);
             p.resolution(&field("resolution"), &c.resolution);
-            p.finite(&field("center"), &c.center);
+            p.vector(&field("center"), &c.center);
             p.positive(&field("mass"), c.mass);
-            p.finite(&field("velocity"), &c.velocity);
+            p.vector(&field("velocity"), &c.velocity);
             p.grid_springs(&field("springs"), &c.springs);
             p.pins(&field("pin"), &c.pin, c.resolution);
         }
         Body::Chain(c) => {
-            p.finite(&field("start"), &c.start);
-            p.finite(&field("end"), &c.end);
+            p.vector(&field("start"), &c.start);
+            p.vector(&field("end"), &c.end);
             if c.count < 2 {
                 p.add(field("count"), format!("must be at least 2, got {}", c.count));
             }
             p.positive(&field("mass"), c.mass);
-            p.finite(&field("velocity"), &c.velocity);
+            p.vector(&field("velocity"), &c.velocity);
             p.positive(&field("spring/k"), c.spring.k);
             p.non_negative(&field("spring/damping"), c.spring.damping);
             if let Some(rest) = c.spring.rest_length {
-                p.positive(&field("spring/rest_length"), rest);
+                p.length(&field("spring/rest_length"), rest);
             }
             p.indices(&field("pin"), &c.pin, c.count, "particle");
         }
         Body::Lattice(l) => {
-            p.all_positive(&field("size"), &l.size);
+            p.lengths(&field("size"), &l.size);
             p.resolution(&field("resolution"), &l.resolution);
-            p.finite(&field("center"), &l.center);
+            p.vector(&field("center"), &l.center);
             p.positive(&field("mass"), l.mass);
-            p.finite(&field("velocity"), &l.velocity);
+            p.vector(&field("velocity"), &l.velocity);
             p.grid_springs(&field("springs"), &l.springs);
             p.pins(&field("pin"), &l.pin, l.resolution);
         }
@@ -226,7 +277,7 @@ fn mesh_problems(p: &mut Problems, at: &str, m: &super::types::MeshSpec) {
             format!("must hold x, y, z for at least 3 vertices; got {} numbers", m.vertices.len()),
         );
     }
-    p.finite(&field("vertices"), &m.vertices);
+    p.vector(&field("vertices"), &m.vertices);
     if !m.triangles.len().is_multiple_of(3) || m.triangles.is_empty() {
         p.add(
             field("triangles"),
@@ -235,7 +286,7 @@ fn mesh_problems(p: &mut Problems, at: &str, m: &super::types::MeshSpec) {
     }
     p.indices(&field("triangles"), &m.triangles, vertex_count, "vertex");
     p.positive(&field("mass"), m.mass);
-    p.finite(&field("velocity"), &m.velocity);
+    p.vector(&field("velocity"), &m.velocity);
     p.spring(&field("springs/structural"), &m.springs.structural);
     p.spring(&field("springs/bending"), &m.springs.bending);
     p.indices(&field("pin"), &m.pin, vertex_count, "vertex");
@@ -262,23 +313,28 @@ fn collider_problems(p: &mut Problems, at: &str, collider: &ColliderSpec) {
     let field = |name: &str| format!("{at}/{name}");
     match collider {
         ColliderSpec::Plane(c) => {
-            p.finite(&field("point"), &c.point);
-            if p.finite(&field("normal"), &c.normal) && c.normal.iter().all(|&n| n == 0.0) {
-                p.add(field("normal"), "must not be the zero vector");
+            p.vector(&field("point"), &c.point);
+            if p.vector(&field("normal"), &c.normal)
+                && c.normal.iter().all(|&n| n.abs() < *POSITIVE_RANGE.start())
+            {
+                p.add(
+                    field("normal"),
+                    "must not be the zero vector, nor so short that its length underflows",
+                );
             }
         }
         ColliderSpec::Sphere(c) => {
-            p.finite(&field("center"), &c.center);
-            p.positive(&field("radius"), c.radius);
+            p.vector(&field("center"), &c.center);
+            p.length(&field("radius"), c.radius);
         }
         ColliderSpec::Box(c) => {
-            p.finite(&field("center"), &c.center);
-            p.all_positive(&field("half_extents"), &c.half_extents);
+            p.vector(&field("center"), &c.center);
+            p.lengths(&field("half_extents"), &c.half_extents);
         }
         ColliderSpec::Cylinder(c) => {
-            p.finite(&field("center"), &c.center);
-            p.positive(&field("radius"), c.radius);
-            p.positive(&field("height"), c.height);
+            p.vector(&field("center"), &c.center);
+            p.length(&field("radius"), c.radius);
+            p.length(&field("height"), c.height);
         }
     }
     let (friction, restitution) = collider.surface();
@@ -289,7 +345,7 @@ fn collider_problems(p: &mut Problems, at: &str, collider: &ColliderSpec) {
 }
 
 fn wind_problems(p: &mut Problems, wind: &WindSpec) {
-    p.finite("/wind/velocity", &wind.velocity);
+    p.vector("/wind/velocity", &wind.velocity);
     p.non_negative("/wind/coefficient", wind.coefficient);
     if let Some(gust) = &wind.gust {
         let amplitude = gust.amplitude;
@@ -297,6 +353,6 @@ fn wind_problems(p: &mut Problems, wind: &WindSpec) {
             p.add("/wind/gust/amplitude", format!("must be in [0, 1], got {amplitude}"));
         }
         p.non_negative("/wind/gust/frequency", gust.frequency);
-        p.positive("/wind/gust/wavelength", gust.wavelength);
+        p.length("/wind/gust/wavelength", gust.wavelength);
     }
 }
