@@ -2,7 +2,9 @@
 //!
 //! The result is in the format `?format=` or `Accept` names, else the scene's `output.format`.
 //! The job is an ordinary job (it shows in `GET /jobs`); the handler waits for it. Runs over the
-//! work budget (particles × steps) are refused with `413` and a pointer to `POST /jobs`. If the
+//! work budget (element-steps, see [`Cost`](crate::jobs::Cost)) are refused with `413`, the
+//! field of the costliest stage and a pointer to `POST /jobs`. A run that ends failed because
+//! its self-collision met more pairs than it may hold is a `422` at that field. If the
 //! client goes away or the request times out, the job is cancelled.
 
 use axum::extract::State;
@@ -14,6 +16,7 @@ use super::extract::{FormatChoice, SceneBody};
 use super::jobs::result_response;
 use super::problem::AppError;
 use crate::jobs::{Failure, JobId, JobStatus, Jobs, Submission};
+use crate::scene::FieldError;
 
 /// Runs the scene and returns its result; a diverged run is a `200` with `stats.status` `diverged`.
 pub async fn simulate(
@@ -47,6 +50,16 @@ pub async fn simulate(
             Ok(response)
         }
         JobStatus::Cancelled => Err(AppError::JobCancelled { id, message: job.message }),
+        JobStatus::Failed if job.failure == Some(Failure::Limit) => {
+            Err(AppError::OverLimit(vec![FieldError::new(
+                "/self_collision/thickness",
+                format!(
+                    "job {id} failed: {}",
+                    job.message
+                        .unwrap_or_else(|| "self-collision met more pairs than the run may hold".into())
+                ),
+            )]))
+        }
         JobStatus::Failed if job.failure == Some(Failure::WallTime) => Err(AppError::TooSlow {
             id,
             message: job.message.unwrap_or_else(|| "the run exceeded the wall-time limit".into()),

@@ -10,9 +10,10 @@ use std::sync::Mutex;
 use async_trait::async_trait;
 
 use super::store::{
-    CancelRequest, Claimed, Inserted, JobStore, Lease, Outcome, Page, Renewed, StoreError, StoredResult,
+    CancelRequest, Claim, Claimed, Inserted, JobStore, Lease, Outcome, Page, Renewed, StoreError,
+    StoredResult, attempts_exhausted,
 };
-use super::{JobId, JobRecord, JobStatus};
+use super::{Failure, JobId, JobRecord, JobStatus};
 
 /// Jobs in a map, in submission order.
 pub struct MemoryStore {
@@ -195,17 +196,38 @@ impl JobStore for MemoryStore {
         Ok(self.with(|s| s.jobs.values().filter(|e| e.record.status == JobStatus::Queued).count() as u64))
     }
 
-    async fn claim(&self, lease: &Lease, now_ms: u64) -> Result<Option<Claimed>, StoreError> {
+    async fn claim(
+        &self,
+        lease: &Lease,
+        now_ms: u64,
+        max_attempts: u32,
+    ) -> Result<Option<Claim>, StoreError> {
         Ok(self.with(|s| {
             let id = s.order.values().find(|id| s.jobs[*id].claimable(now_ms))?.clone();
             let entry = s.jobs.get_mut(&id)?;
+            if entry.record.attempts >= max_attempts {
+                entry.end(
+                    now_ms,
+                    Outcome {
+                        status: JobStatus::Failed,
+                        steps_done: 0,
+                        message: Some(attempts_exhausted(max_attempts)),
+                        failure: Some(Failure::Attempts),
+                        stats: None,
+                        result: None,
+                    },
+                );
+                let record = entry.record.clone();
+                s.ended_one(self.retain);
+                return Some(Claim::GaveUp(record));
+            }
             entry.lease = Some(lease.clone());
             let record = &mut entry.record;
             record.status = JobStatus::Running;
             record.started_ms = Some(now_ms);
             record.steps_done = 0;
             record.attempts += 1;
-            Some(Claimed { record: record.clone(), scene: entry.scene.clone() })
+            Some(Claim::Run(Claimed { record: record.clone(), scene: entry.scene.clone() }))
         }))
     }
 
@@ -246,6 +268,7 @@ impl JobStore for MemoryStore {
                 entry.lease = None;
                 entry.record.status = JobStatus::Queued;
                 entry.record.steps_done = 0;
+                entry.record.attempts = entry.record.attempts.saturating_sub(1);
             }
             Ok(())
         })
@@ -337,7 +360,7 @@ mod tests {
         let lease = Lease { owner: "me".into(), until_ms: u64::MAX };
         for j in &jobs {
             assert_eq!(block_on(store.insert(j.clone(), "{}")).unwrap(), Inserted::New);
-            block_on(store.claim(&lease, 0)).unwrap().unwrap();
+            block_on(store.claim(&lease, 0, 3)).unwrap().unwrap();
         }
         // a stays running; b, c and d end in that order, so b is forgotten.
         for j in &jobs[1..] {

@@ -23,7 +23,13 @@
 //! The pairs and their order are those of one thread's search, whatever the number of bands. The
 //! lists start with room for a pair per particle and keep it from step to step (a 256² cloth
 //! draped over a sphere meets a few hundred pairs); only a state more crumpled than that makes a
-//! step allocate, once, to make more room.
+//! step allocate, once, to make more room. The lists together never hold room for more than the
+//! stage's cap on pairs: a band that needs more room takes it from what the cap leaves, and one
+//! that finds none counts its remaining pairs without storing them. A search whose pairs come to
+//! more than the cap ends the stage with [`PairCapReached`] (which does not depend on the number
+//! of bands); one that fits but whose room was held by other bands is searched again in lists
+//! made exactly large enough. A thickness far above the particle spacing would otherwise meet
+//! every pair of particles, a number quadratic in their count.
 //!
 //! A pair closer than `2 · thickness` that no spring joins is pushed apart along the line
 //! between them until it is exactly that far, shared by inverse mass (a pinned particle is held),
@@ -37,6 +43,7 @@
 #![allow(clippy::neg_cmp_op_on_partial_ord, reason = "written so that a NaN fails each test")]
 
 use std::ops::Range;
+use std::sync::atomic::{AtomicUsize, Ordering};
 
 use super::model::Model;
 use super::{Real, State, Vec3, Vectors, parallel};
@@ -103,14 +110,39 @@ pub struct SelfCollision<T> {
     /// Per band of particles (one per solver thread for a large state): the candidate pairs its
     /// particles meet, in the sweep's order.
     pairs: Vec<Vec<[u32; 2]>>,
+    /// Per band: the pairs it met and could not store for want of room under the cap.
+    unstored: Vec<usize>,
+    /// The most pairs the lists together may have room for.
+    max_pairs: usize,
     /// Spring partners of each particle, sorted: `partners[partner_start[p]..partner_start[p + 1]]`.
     partner_start: Vec<u32>,
     partners: Vec<u32>,
 }
 
+/// The self-collision stage met more candidate pairs in one step than its cap allows it to hold.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct PairCapReached {
+    /// Candidate pairs the step met.
+    pub pairs: u64,
+    /// The most the stage may hold.
+    pub cap: usize,
+}
+
+impl std::fmt::Display for PairCapReached {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "self-collision met {} candidate pairs in one step, more than the {} this run may hold: \
+             the particles crowded within a few thicknesses of one another",
+            self.pairs, self.cap
+        )
+    }
+}
+
 impl<T: Real> SelfCollision<T> {
-    /// The stage for a model whose particles keep `2 · thickness` apart (thickness positive).
-    pub fn new(model: &Model, thickness: f64) -> Self {
+    /// The stage for a model whose particles keep `2 · thickness` apart (thickness positive),
+    /// holding at most `max_pairs` candidate pairs.
+    pub fn new(model: &Model, thickness: f64, max_pairs: usize) -> Self {
         let n = model.particle_count();
         // At most a quarter full: a run of three buckets holds under one particle of other
         // columns on average.
@@ -142,8 +174,11 @@ impl<T: Real> SelfCollision<T> {
             buckets: vec![0; n],
             pairs: {
                 let bands = parallel::band_count(n, n, 1);
-                (0..bands).map(|_| Vec::with_capacity(n.div_ceil(bands))).collect()
+                let room = n.div_ceil(bands).min(max_pairs / bands);
+                (0..bands).map(|_| Vec::with_capacity(room)).collect()
             },
+            unstored: vec![0; parallel::band_count(n, n, 1)],
+            max_pairs,
             partner_start,
             partners,
         }
@@ -195,30 +230,65 @@ impl<T: Real> SelfCollision<T> {
         &self.sorted[self.bucket_start[first] as usize..self.bucket_start[last + 1] as usize]
     }
 
-    /// Pushes apart every unjoined pair closer than `2 · thickness`; returns whether any moved.
-    pub fn resolve(&mut self, state: &mut State<T>, inverse_masses: &[T]) -> bool {
+    /// Pushes apart every unjoined pair closer than `2 · thickness`; returns whether any moved,
+    /// or, leaving the state as it was, that the step met more pairs than the cap.
+    pub fn resolve(&mut self, state: &mut State<T>, inverse_masses: &[T]) -> Result<bool, PairCapReached> {
         self.build(&state.positions);
         let mut pairs = std::mem::take(&mut self.pairs);
+        let mut unstored = std::mem::take(&mut self.unstored);
         let (bands, n) = (pairs.len(), self.cells.len());
         let chunk = n.div_ceil(bands).max(1);
+        let held = pairs.iter().map(Vec::capacity).fold(0, usize::saturating_add);
+        let room = AtomicUsize::new(self.max_pairs.saturating_sub(held));
         let this = &*self;
-        parallel::in_bands([&mut pairs[..]], bands, 1, 1, &|band, _, [lists]| {
-            for (band, list) in (band..).zip(lists) {
-                list.clear();
-                this.candidates(band * chunk..((band + 1) * chunk).min(n), list);
+        parallel::in_bands(
+            ([&mut pairs[..]], [&mut unstored[..]]),
+            bands,
+            1,
+            1,
+            &|band, _, ([lists], [cut])| {
+                for ((band, list), cut) in (band..).zip(lists).zip(cut) {
+                    list.clear();
+                    *cut = this.candidates(band * chunk..((band + 1) * chunk).min(n), list, &room);
+                }
+            },
+        );
+        let cut = unstored.iter().fold(0, |sum: usize, &c| sum.saturating_add(c));
+        if cut > 0 {
+            let met = pairs.iter().map(Vec::len).fold(cut, usize::saturating_add);
+            if met > self.max_pairs {
+                self.pairs = pairs;
+                self.unstored = unstored;
+                return Err(PairCapReached { pairs: met as u64, cap: self.max_pairs });
             }
-        });
+            // The pairs fit, but other bands held the room: give each band exactly what it met.
+            for (band, (list, cut)) in pairs.iter_mut().zip(unstored.iter_mut()).enumerate() {
+                if *cut == 0 {
+                    list.shrink_to_fit();
+                    continue;
+                }
+                let needed = list.len() + *cut;
+                *list = Vec::new();
+                list.reserve_exact(needed);
+                *cut = self.candidates(band * chunk..((band + 1) * chunk).min(n), list, &AtomicUsize::new(0));
+                debug_assert_eq!(*cut, 0);
+            }
+        }
         let mut moved = false;
         for &[p, q] in pairs.iter().flatten() {
             moved |= self.separate(p as usize, q as usize, state, inverse_masses);
         }
         self.pairs = pairs;
-        moved
+        self.unstored = unstored;
+        Ok(moved)
     }
 
     /// Appends to `pairs`, in the sweep's order, every pair the particles `particles` meet in
-    /// the cells after their own.
-    fn candidates(&self, particles: Range<usize>, pairs: &mut Vec<[u32; 2]>) {
+    /// the cells after their own. A full list takes more room from `room` (the room left under
+    /// the cap), doubling while it can; once none is left, the pairs still met are counted, not
+    /// stored, and their count returned.
+    fn candidates(&self, particles: Range<usize>, pairs: &mut Vec<[u32; 2]>, room: &AtomicUsize) -> usize {
+        let mut unstored = 0;
         for p in particles {
             let [i, j, k] = self.cells[p].map(i64::from);
             for [dj, dk, from] in FORWARD {
@@ -233,7 +303,11 @@ impl<T: Real> SelfCollision<T> {
                         let once = (ei != i) | (dj != 0) | (dk != 0) | (q > p);
                         // One branch, rarely taken: most entries are of other columns.
                         if beside & once {
-                            pairs.push([p as u32, q as u32]);
+                            if pairs.len() == pairs.capacity() && (unstored > 0 || !grow(pairs, room)) {
+                                unstored += 1;
+                            } else {
+                                pairs.push([p as u32, q as u32]);
+                            }
                         }
                     }
                 };
@@ -247,6 +321,7 @@ impl<T: Real> SelfCollision<T> {
                 }
             }
         }
+        unstored
     }
 
     /// Pushes the candidate pair `p`, `q` apart if they are closer than `2 · thickness` and no
@@ -273,6 +348,53 @@ impl<T: Real> SelfCollision<T> {
         }
         true
     }
+}
+
+/// How many candidate pairs the stage meets in the model's initial layout: for every cell of
+/// side `2 · thickness`, the pairs within it and with the 13 cells after it. A cost estimate
+/// made without building the stage: one pass over the particles and one over the occupied
+/// cells. Motion changes the count (a cloth folding onto itself meets more).
+pub fn candidate_pairs(model: &Model, thickness: f64) -> u64 {
+    let hash = CellHash { inverse_cell: 1.0 / (2.0 * thickness), mask: 0, shift: 0 };
+    let mut counts = std::collections::HashMap::<Cell, u64>::with_capacity(model.particle_count());
+    for p in &model.positions {
+        *counts.entry(hash.cell(p.to_array())).or_default() += 1;
+    }
+    let count_at = |i: i64, j: i64, k: i64| -> u64 {
+        let inside = |v: i64| i32::try_from(v).ok();
+        match (inside(i), inside(j), inside(k)) {
+            (Some(i), Some(j), Some(k)) => counts.get(&[i, j, k]).copied().unwrap_or(0),
+            _ => 0,
+        }
+    };
+    let mut pairs = 0u64;
+    for (&[i, j, k], &own) in &counts {
+        let [i, j, k] = [i, j, k].map(i64::from);
+        let mut after = 0u64;
+        for [dj, dk, from] in FORWARD {
+            for di in from..=1 {
+                if (dj, dk, di) != (0, 0, 0) {
+                    after = after.saturating_add(count_at(i + di, j + dj, k + dk));
+                }
+            }
+        }
+        let within = own.saturating_mul(own.saturating_sub(1)) / 2;
+        pairs = pairs.saturating_add(within).saturating_add(own.saturating_mul(after));
+    }
+    pairs
+}
+
+/// Makes room in a full list for more pairs, taken from `room`: as many again as it holds (at
+/// least 64), or what is left. Returns false when nothing is left.
+fn grow(pairs: &mut Vec<[u32; 2]>, room: &AtomicUsize) -> bool {
+    let wanted = pairs.capacity().max(64);
+    let Ok(left) = room.fetch_update(Ordering::Relaxed, Ordering::Relaxed, |left| {
+        (left > 0).then(|| left.saturating_sub(wanted))
+    }) else {
+        return false;
+    };
+    pairs.reserve_exact(wanted.min(left));
+    true
 }
 
 #[cfg(test)]
@@ -302,9 +424,9 @@ mod tests {
         // 0-1 are joined and close; 1-2 are not joined and close; 3 is far away.
         let m = model(&[0.0, 0.008, 0.012, 1.0]);
         let mut s = state(&m, &[0.0, 1.0, -1.0, 0.0]);
-        let mut stage = SelfCollision::<f64>::new(&m, 0.005);
+        let mut stage = SelfCollision::<f64>::new(&m, 0.005, usize::MAX);
         let before = s.positions.clone();
-        assert!(stage.resolve(&mut s, &[1.0, 1.0, 1.0, 1.0]));
+        assert!(stage.resolve(&mut s, &[1.0, 1.0, 1.0, 1.0]).unwrap());
         assert_eq!(s.positions.get(0), before.get(0));
         assert_eq!(s.positions.get(3), before.get(3));
         let gap = s.positions.get(2).x - s.positions.get(1).x;
@@ -343,8 +465,8 @@ mod tests {
         let mut m = Model::default();
         m.add_particles(positions.iter().copied(), |_| 1.0, DVec3::ZERO);
         let mut s = state(&m, &vec![0.0; positions.len()]);
-        let mut stage = SelfCollision::<f64>::new(&m, thickness);
-        assert!(stage.resolve(&mut s, &vec![1.0; positions.len()]));
+        let mut stage = SelfCollision::<f64>::new(&m, thickness, usize::MAX);
+        assert!(stage.resolve(&mut s, &vec![1.0; positions.len()]).unwrap());
         for pair in 0..positions.len() / 2 {
             let (p, q) = (2 * pair, 2 * pair + 1);
             let gap = (s.positions.get(q) - s.positions.get(p)).length();
@@ -370,10 +492,11 @@ mod tests {
         let velocities: Vec<f64> = (0..m.particle_count()).map(|p| (p as f64 * 0.11).sin()).collect();
         let w: Vec<f64> = (0..m.particle_count()).map(|p| if p % 97 == 0 { 0.0 } else { 1.0 }).collect();
         let sweeps = |bands: usize| {
-            let mut stage = SelfCollision::<f64>::new(&m, 0.004);
+            let mut stage = SelfCollision::<f64>::new(&m, 0.004, usize::MAX);
             stage.pairs = vec![Vec::new(); bands];
+            stage.unstored = vec![0; bands];
             let mut s = state(&m, &velocities);
-            let met = (0..3).map(|_| stage.resolve(&mut s, &w)).collect::<Vec<_>>();
+            let met = (0..3).map(|_| stage.resolve(&mut s, &w).unwrap()).collect::<Vec<_>>();
             (met, stage.pairs.iter().map(Vec::len).sum::<usize>(), s)
         };
         let (met, pairs, one) = sweeps(1);
@@ -389,12 +512,82 @@ mod tests {
         }
     }
 
+    /// A 40 × 40 cloth crumpled into a small ball, with its velocities and inverse masses.
+    fn crumpled_cloth() -> (Model, Vec<f64>, Vec<f64>) {
+        let mut m = Model::default();
+        m.add_cloth(&crate::solver::Cloth::square_metre(40, SpringParams { stiffness: 1.0, damping: 0.0 }));
+        for (p, x) in m.positions.iter_mut().enumerate() {
+            let t = p as f64 * 0.37;
+            *x = DVec3::new((t * 1.3).sin(), (t * 0.7).cos(), (t * 2.1).sin()) * 0.1;
+        }
+        let velocities = (0..m.particle_count()).map(|p| (p as f64 * 0.11).sin()).collect();
+        let w = (0..m.particle_count()).map(|p| if p % 97 == 0 { 0.0 } else { 1.0 }).collect();
+        (m, velocities, w)
+    }
+
+    #[test]
+    fn a_step_meeting_more_pairs_than_the_cap_fails_and_leaves_the_state_alone() {
+        let (m, velocities, w) = crumpled_cloth();
+        let mut free = SelfCollision::<f64>::new(&m, 0.004, usize::MAX);
+        assert!(free.resolve(&mut state(&m, &velocities), &w).unwrap());
+        let met: usize = free.pairs.iter().map(Vec::len).sum();
+        assert!(met > 1000, "{met} pairs");
+
+        for bands in [1, 3, 7] {
+            let mut capped = SelfCollision::<f64>::new(&m, 0.004, met - 1);
+            capped.pairs = vec![Vec::new(); bands];
+            capped.unstored = vec![0; bands];
+            let mut s = state(&m, &velocities);
+            let before = s.clone();
+            assert_eq!(
+                capped.resolve(&mut s, &w),
+                Err(PairCapReached { pairs: met as u64, cap: met - 1 }),
+                "{bands} bands"
+            );
+            assert_eq!((&s.positions, &s.velocities), (&before.positions, &before.velocities));
+            let room: usize = capped.pairs.iter().map(Vec::capacity).sum();
+            assert!(room < met, "{bands} bands hold room for {room} pairs");
+        }
+    }
+
+    #[test]
+    fn a_step_meeting_exactly_the_cap_runs_as_if_uncapped_whatever_the_bands() {
+        let (m, velocities, w) = crumpled_cloth();
+        let mut free = SelfCollision::<f64>::new(&m, 0.004, usize::MAX);
+        let mut expected = state(&m, &velocities);
+        free.resolve(&mut expected, &w).unwrap();
+        let met: usize = free.pairs.iter().map(Vec::len).sum();
+        for bands in [1, 2, 3, 7] {
+            let mut capped = SelfCollision::<f64>::new(&m, 0.004, met);
+            capped.pairs = vec![Vec::new(); bands];
+            capped.unstored = vec![0; bands];
+            let mut s = state(&m, &velocities);
+            assert_eq!(capped.resolve(&mut s, &w), Ok(true), "{bands} bands");
+            assert_eq!((&s.positions, &s.velocities), (&expected.positions, &expected.velocities));
+            let room: usize = capped.pairs.iter().map(Vec::capacity).sum();
+            assert!(room <= met, "{bands} bands hold room for {room} of {met} pairs");
+        }
+    }
+
+    #[test]
+    fn the_estimate_of_pairs_is_the_count_the_search_meets() {
+        let (m, velocities, w) = crumpled_cloth();
+        for thickness in [0.001, 0.004, 0.02, 1.0] {
+            let mut stage = SelfCollision::<f64>::new(&m, thickness, usize::MAX);
+            stage.resolve(&mut state(&m, &velocities), &w).unwrap();
+            let met: usize = stage.pairs.iter().map(Vec::len).sum();
+            assert_eq!(candidate_pairs(&m, thickness), met as u64, "thickness {thickness}");
+        }
+        // Every pair of the 1600 particles when one cell holds them all.
+        assert_eq!(candidate_pairs(&m, 10.0), 1600 * 1599 / 2);
+    }
+
     #[test]
     fn a_pinned_particle_is_held_and_coincident_particles_separate_along_y() {
         let m = model(&[0.0, 5.0, 5.0]);
         let mut s = state(&m, &[0.0, 0.0, 0.0]);
-        let mut stage = SelfCollision::<f64>::new(&m, 0.01);
-        assert!(stage.resolve(&mut s, &[1.0, 0.0, 1.0]));
+        let mut stage = SelfCollision::<f64>::new(&m, 0.01, usize::MAX);
+        assert!(stage.resolve(&mut s, &[1.0, 0.0, 1.0]).unwrap());
         assert_eq!(s.positions.get(1), Vec3::new(5.0, 0.0, 0.0));
         assert_eq!(s.positions.get(2), Vec3::new(5.0, 0.02, 0.0));
         assert!(s.positions.iter().all(|p| p.is_finite()));
@@ -419,10 +612,10 @@ mod tests {
             *x = DVec3::new((t * 1.3).sin(), (t * 0.7).cos(), (t * 2.1).sin()) * 0.05;
         }
         let mut s = state(&m, &vec![0.0; 200]);
-        let mut stage = SelfCollision::<f64>::new(&m, 0.002);
+        let mut stage = SelfCollision::<f64>::new(&m, 0.002, usize::MAX);
         let w = vec![1.0; 200];
         for _ in 0..200 {
-            stage.resolve(&mut s, &w);
+            stage.resolve(&mut s, &w).unwrap();
         }
         for p in 0..200usize {
             for q in p + 2..200 {

@@ -1,0 +1,275 @@
+//! The cost model: the work and the memory of a compiled scene, stage by stage, known before
+//! anything runs.
+//!
+//! Work is counted in element-steps: each step costs one for every particle, every spring,
+//! every collider test of a particle (colliders × particles), every self-collision candidate
+//! pair and every wind triangle, RK4's four force evaluations and implicit Euler's passes
+//! counted as that many; the error estimate's companions cost their own steps. Memory is an
+//! upper bound in bytes on what a run holds at once: the model and the simulation's arrays (per
+//! particle and per spring, by integrator and precision), the self-collision hash and its pairs,
+//! the recorded frames and the encoded result, and a companion run beside the main one. Each
+//! stage names the scene field that switches it on or sets its size, so that a refusal can point
+//! at it. The per-element byte counts are measured figures with a margin: the peak resident
+//! memory of `drape run` on cloths, lattices and collider sets of several sizes, with each
+//! integrator and stage, stays under the estimate plus [`MEMORY_RESERVE`](crate::config::MEMORY_RESERVE).
+
+use crate::scene::{
+    Body, Compiled, ErrorEstimateName, Field, FrameSelection, IntegratorName, Precision, Scene,
+};
+use crate::solver::{WindModel, candidate_pairs};
+
+use super::Plan;
+
+/// Force evaluations over every particle and spring that a step of implicit Euler is counted
+/// as: its assembly and a few conjugate-gradient iterations on the multigrid preconditioner (the
+/// wall-time limit stops a solve that takes many more).
+pub const IMPLICIT_PASSES: u64 = 8;
+
+/// Bytes a particle costs in the model a scene compiles to (positions, velocities, masses, pins,
+/// body bookkeeping), whatever the precision.
+const MODEL_BYTES_PER_PARTICLE: u64 = 128;
+/// Bytes a spring costs in the model.
+const MODEL_BYTES_PER_SPRING: u64 = 48;
+/// Bytes a triangle costs in the model.
+const MODEL_BYTES_PER_TRIANGLE: u64 = 16;
+/// Real numbers a particle costs in a running simulation, by integrator (state, forces,
+/// integrator scratch and, for implicit Euler, the operator, the solver's vectors and the
+/// multigrid levels).
+fn simulation_reals_per_particle(integrator: IntegratorName) -> u64 {
+    match integrator {
+        IntegratorName::ExplicitEuler | IntegratorName::SymplecticEuler | IntegratorName::Verlet => 40,
+        IntegratorName::Rk4 => 64,
+        IntegratorName::ImplicitEuler => 160,
+    }
+}
+/// Bytes a spring of a cloth's grid costs in a running simulation (its row stencils, and for
+/// implicit Euler its Jacobian blocks).
+fn simulation_bytes_per_grid_spring(integrator: IntegratorName) -> u64 {
+    match integrator {
+        IntegratorName::ImplicitEuler => 160,
+        _ => 48,
+    }
+}
+/// Bytes a spring of any other body costs in a running simulation: the spring list, its sorted
+/// runs and their bands, and for implicit Euler the Jacobian blocks.
+const SIMULATION_BYTES_PER_LISTED_SPRING: u64 = 224;
+/// Bytes a collider costs: its scene document, its parsed and compiled forms and the stage's.
+const BYTES_PER_COLLIDER: u64 = 2048;
+/// Bytes a self-collision candidate pair takes in the pair lists.
+pub const BYTES_PER_PAIR: u64 = 8;
+/// Bytes of the self-collision hash per particle (buckets at most a quarter full, the sorted
+/// entries, cells) and per spring (each end's partner list).
+const HASH_BYTES_PER_PARTICLE: u64 = 96;
+const HASH_BYTES_PER_SPRING: u64 = 8;
+/// Bytes a recorded value costs: the value in the run's precision (counted as 8) and its
+/// encoding, twice (the encoded result and its compressed copy); JSON writes a double in at most
+/// 25 bytes.
+const BYTES_PER_RECORDED_VALUE: u64 = 8 + 2 * 25;
+
+/// What one stage of a run costs.
+#[derive(Clone, Debug, PartialEq)]
+pub struct StageCost {
+    /// The stage, as `stats.stages` names it, or `bodies`, `frames`, `error_estimate`.
+    pub stage: &'static str,
+    /// The scene field that switches it on or sets its size (a JSON Pointer).
+    pub pointer: String,
+    /// Element-steps.
+    pub work: u64,
+    /// Bytes.
+    pub memory: u64,
+}
+
+/// The work and memory of a run, stage by stage.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Cost {
+    /// Every stage the scene switches on.
+    pub stages: Vec<StageCost>,
+    /// Self-collision candidate pairs in the initial layout (0 without self-collision).
+    pub pairs: u64,
+}
+
+impl Cost {
+    /// The cost of a compiled scene whose plan is `plan`.
+    pub fn of(scene: &Scene, compiled: &Compiled, plan: &Plan) -> Self {
+        let particles = plan.particles;
+        let springs = plan.springs;
+        let triangles = compiled.model.triangles.len() as u64;
+        let steps = plan.steps;
+        let real = match compiled.precision {
+            Precision::F32 => 4,
+            Precision::F64 => 8,
+        };
+        let per_step = |work: u64| work.saturating_mul(steps);
+        let mut stages = Vec::new();
+        let mut stage = |stage, pointer: String, work, memory| {
+            stages.push(StageCost { stage, pointer, work, memory });
+        };
+
+        let model_memory = particles
+            .saturating_mul(MODEL_BYTES_PER_PARTICLE)
+            .saturating_add(springs.saturating_mul(MODEL_BYTES_PER_SPRING))
+            .saturating_add(triangles.saturating_mul(MODEL_BYTES_PER_TRIANGLE));
+        // A run's simulation beside its model; the error estimate adds a second one.
+        let listed = scene
+            .bodies
+            .iter()
+            .filter(|b| !matches!(b, Body::Cloth(_)))
+            .map(Body::spring_count)
+            .fold(0, u64::saturating_add)
+            .min(springs);
+        let mut simulation_memory = particles
+            .saturating_mul(simulation_reals_per_particle(scene.integrator) * real)
+            .saturating_add(
+                (springs - listed).saturating_mul(simulation_bytes_per_grid_spring(scene.integrator)),
+            )
+            .saturating_add(listed.saturating_mul(SIMULATION_BYTES_PER_LISTED_SPRING));
+        let passes = match scene.integrator {
+            IntegratorName::Rk4 => 4,
+            IntegratorName::ImplicitEuler => IMPLICIT_PASSES,
+            _ => 1,
+        };
+        let elements = particles.saturating_add(springs);
+        let mut step_work = elements.saturating_mul(passes);
+        stage(
+            "bodies",
+            largest_body(scene),
+            per_step(elements),
+            model_memory.saturating_add(simulation_memory),
+        );
+        if passes > 1 {
+            stage("integrator", "/integrator".into(), per_step(elements.saturating_mul(passes - 1)), 0);
+        }
+
+        if !scene.colliders.is_empty() {
+            let tests = particles.saturating_mul(scene.colliders.len() as u64);
+            let memory = particles
+                .saturating_mul(3 * real)
+                .saturating_add((scene.colliders.len() as u64).saturating_mul(BYTES_PER_COLLIDER));
+            step_work = step_work.saturating_add(tests);
+            simulation_memory = simulation_memory.saturating_add(memory);
+            stage("colliders", "/colliders".into(), per_step(tests), memory);
+        }
+        if let Some(wind) = &compiled.config.wind {
+            let work = match wind.model {
+                WindModel::Viscous => triangles.saturating_add(particles),
+                WindModel::Aerodynamic => triangles,
+            };
+            let memory =
+                particles.saturating_mul(3 * real).saturating_add(triangles.saturating_mul(4 * real));
+            step_work = step_work.saturating_add(work);
+            simulation_memory = simulation_memory.saturating_add(memory);
+            stage("wind", "/wind".into(), per_step(work), memory);
+        }
+        if compiled.config.strain_limit.is_some() {
+            let memory = particles.saturating_mul(3 * real);
+            step_work = step_work.saturating_add(springs);
+            simulation_memory = simulation_memory.saturating_add(memory);
+            stage("strain_limit", "/strain_limit".into(), per_step(springs), memory);
+        }
+        let mut pairs = 0;
+        if let Some(thickness) = compiled.config.self_collision {
+            pairs = candidate_pairs(&compiled.model, thickness);
+            // The lists start with room for a pair per particle.
+            let held = pairs.max(particles);
+            let work = particles.saturating_add(pairs);
+            let memory = particles
+                .saturating_mul(HASH_BYTES_PER_PARTICLE)
+                .saturating_add(springs.saturating_mul(HASH_BYTES_PER_SPRING))
+                .saturating_add(held.saturating_mul(BYTES_PER_PAIR));
+            step_work = step_work.saturating_add(work);
+            simulation_memory = simulation_memory.saturating_add(memory);
+            stage("self_collision", "/self_collision/thickness".into(), per_step(work), memory);
+        }
+
+        let (frames, values) = recorded(compiled, plan);
+        if values > 0 {
+            let pointer =
+                if compiled.output.frames == FrameSelection::All { "/output/fps" } else { "/output/fields" };
+            let memory = values
+                .saturating_mul(BYTES_PER_RECORDED_VALUE)
+                .saturating_add(frames.min(steps.saturating_add(2)).saturating_mul(16));
+            stage("frames", pointer.into(), 0, memory);
+        }
+        if plan.companion_steps > 0 {
+            // Companions run one at a time beside the main run, each with a simulation of its own.
+            stage(
+                "error_estimate",
+                "/error_estimate".into(),
+                step_work.saturating_mul(plan.companion_steps),
+                simulation_memory,
+            );
+        }
+        Self { stages, pairs }
+    }
+
+    /// Element-steps of the whole run, companions included.
+    pub fn work(&self) -> u64 {
+        self.stages.iter().map(|s| s.work).fold(0, u64::saturating_add)
+    }
+
+    /// Bytes the run holds at most, companions included.
+    pub fn memory(&self) -> u64 {
+        self.stages.iter().map(|s| s.memory).fold(0, u64::saturating_add)
+    }
+
+    /// Runs holding self-collision pairs at once: the main run and a companion beside it.
+    pub fn concurrent_runs(&self) -> u64 {
+        if self.stages.iter().any(|s| s.stage == "error_estimate") { 2 } else { 1 }
+    }
+
+    /// The stage that costs the most of `measure`.
+    pub fn largest(&self, measure: fn(&StageCost) -> u64) -> Option<&StageCost> {
+        self.stages.iter().max_by_key(|s| measure(s))
+    }
+}
+
+/// The size field of the body with the most particles.
+fn largest_body(scene: &Scene) -> String {
+    let (at, body) = scene
+        .bodies
+        .iter()
+        .enumerate()
+        .max_by_key(|(_, b)| b.particle_count())
+        .expect("a valid scene has a body");
+    format!("/bodies/{at}{}", size_field(body))
+}
+
+/// The field that sets a body's size.
+pub fn size_field(body: &Body) -> &'static str {
+    match body {
+        Body::Cloth(_) | Body::Lattice(_) => "/resolution",
+        Body::Chain(_) => "/count",
+        Body::Mesh(_) => "/vertices",
+    }
+}
+
+/// An upper bound on the frames a run records and on the values they hold: frames ×
+/// (3 × particles per vector field + springs for strain + 3 for energy).
+pub fn recorded(compiled: &Compiled, plan: &Plan) -> (u64, u64) {
+    let output = &compiled.output;
+    let frames = match output.frames {
+        FrameSelection::All => ((plan.duration * output.fps).floor() as u64).saturating_add(2),
+        FrameSelection::Final => 1,
+        FrameSelection::None => 0,
+    };
+    let per_frame = output
+        .fields
+        .iter()
+        .map(|field| match field {
+            Field::Positions | Field::Velocities | Field::Normals => plan.particles.saturating_mul(3),
+            Field::Energy => 3,
+            Field::Strain => plan.springs,
+        })
+        .fold(0, u64::saturating_add);
+    (frames, frames.saturating_mul(per_frame))
+}
+
+/// Steps of the error estimate's companions: at twice the step, and for `richardson3` also at
+/// four times the step.
+pub fn companion_steps(compiled: &Compiled) -> u64 {
+    match compiled.error_estimate {
+        ErrorEstimateName::None => 0,
+        ErrorEstimateName::Richardson => compiled.steps / 2,
+        ErrorEstimateName::Richardson3 => compiled.steps / 2 + compiled.steps / 4,
+    }
+}
