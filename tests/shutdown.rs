@@ -1,5 +1,6 @@
 //! SIGTERM on the real `drape serve`: it stops accepting, lets running jobs finish within the
-//! grace period, cancels the rest, and exits 0.
+//! grace period, cancels the rest, and exits 0. And `Jobs::shutdown` itself returns soon after
+//! the grace period even when a job's thread never returns, handing its job back.
 
 #![cfg(unix)]
 
@@ -124,4 +125,59 @@ async fn sigterm_lets_a_running_job_finish_within_the_grace_period() {
     assert_eq!(end["status"], "succeeded");
     assert_eq!(end["progress"]["step"], 20_000);
     assert!(wait(child).success());
+}
+
+/// A job system whose one job blocks its worker thread for an hour, far past any test.
+async fn stuck(store: std::sync::Arc<dyn drape::jobs::JobStore>) -> (drape::jobs::Jobs, drape::jobs::JobId) {
+    use drape::jobs::{Jobs, JobsConfig, Submission};
+    let config = JobsConfig {
+        workers: 1,
+        before_run: Some(std::sync::Arc::new(|_: &drape::scene::Compiled| {
+            std::thread::sleep(Duration::from_secs(3600));
+        })),
+        ..JobsConfig::default()
+    };
+    let jobs = Jobs::start(store, config);
+    let document: Value = serde_json::from_str(SHORT).unwrap();
+    let scene = drape::scene::Scene::from_value(document.clone()).unwrap();
+    let submission = Submission { scene, document, fingerprint: 0, idempotency_key: None, max_work: None };
+    let id = jobs.submit(submission).await.unwrap().job.id;
+    while jobs.running() == 0 {
+        tokio::time::sleep(Duration::from_millis(5)).await;
+    }
+    (jobs, id)
+}
+
+/// Shuts down with a grace of 0.2 s; returns how long it took, checked against a deadline far
+/// above the grace plus the second a stopped job is given.
+async fn shut_down(jobs: &drape::jobs::Jobs) -> Duration {
+    let started = std::time::Instant::now();
+    tokio::time::timeout(Duration::from_secs(20), jobs.shutdown(Duration::from_millis(200)))
+        .await
+        .expect("shutdown returned although a worker thread never did");
+    started.elapsed()
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn shutdown_hands_back_the_job_of_a_thread_that_never_returns_on_a_durable_store() {
+    let dir = tempfile::tempdir().unwrap();
+    let store =
+        std::sync::Arc::new(drape::jobs::SqliteStore::open(&dir.path().join("jobs.db")).await.unwrap());
+    let (jobs, id) = stuck(store.clone()).await;
+    let took = shut_down(&jobs).await;
+    eprintln!("shutdown returned after {took:?} with a grace of 0.2 s");
+    let job = drape::jobs::JobStore::get(&*store, &id).await.unwrap().unwrap();
+    assert_eq!((job.status, job.attempts), (drape::jobs::JobStatus::Queued, 0), "back in the queue");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn shutdown_cancels_the_job_of_a_thread_that_never_returns_on_the_memory_store() {
+    let store = std::sync::Arc::new(drape::jobs::MemoryStore::new());
+    let (jobs, id) = stuck(store.clone()).await;
+    shut_down(&jobs).await;
+    let job = drape::jobs::JobStore::get(&*store, &id).await.unwrap().unwrap();
+    assert_eq!(
+        (job.status, job.message.as_deref()),
+        (drape::jobs::JobStatus::Cancelled, Some("the server shut down before the job finished"))
+    );
 }

@@ -11,9 +11,9 @@ use std::time::Duration;
 
 use bytes::Bytes;
 use drape::jobs::{
-    CancelRequest, Claimed, Failure, Idempotency, Inserted, JobId, JobRecord, JobStatus, JobStore, Jobs,
-    JobsConfig, Lease, MemoryStore, Outcome, Page, Plan, PostgresStore, Renewed, SqliteStore, StoredResult,
-    Submission,
+    CancelRequest, Claim, Claimed, Failure, Idempotency, Inserted, JobId, JobRecord, JobStatus, JobStore,
+    Jobs, JobsConfig, Lease, MemoryStore, Outcome, Page, Plan, PostgresStore, Renewed, SqliteStore,
+    StoredResult, Submission,
 };
 use drape::scene::Scene;
 use serde_json::json;
@@ -78,8 +78,14 @@ fn succeeded(steps: u64, bytes: &[u8]) -> Outcome {
     }
 }
 
+/// The `--max-attempts` the suite's claims run under.
+const MAX_ATTEMPTS: u32 = 3;
+
 async fn claim(store: &dyn JobStore, owner: &str, now: u64) -> Option<Claimed> {
-    store.claim(&lease(owner, now), now).await.unwrap()
+    match store.claim(&lease(owner, now), now, MAX_ATTEMPTS).await.unwrap()? {
+        Claim::Run(claimed) => Some(claimed),
+        Claim::GaveUp(job) => panic!("job {} was given up after {} attempts", job.id, job.attempts),
+    }
 }
 
 async fn jobs_round_trip_and_list_newest_first(store: Arc<dyn JobStore>) {
@@ -245,9 +251,47 @@ async fn a_released_job_runs_again_from_the_start(store: Arc<dyn JobStore>) {
     );
     store.release(&a.id, "a").await.unwrap();
     let released = store.get(&a.id).await.unwrap().unwrap();
-    assert_eq!((released.status, released.steps_done), (JobStatus::Queued, 0));
+    // A release (a shutdown) is not a start that failed to end: its attempt is given back.
+    assert_eq!((released.status, released.steps_done, released.attempts), (JobStatus::Queued, 0, 0));
     let again = claim(store, "b", T0 + 20).await.unwrap();
-    assert_eq!((again.record.id, again.record.attempts), (a.id, 2));
+    assert_eq!((again.record.id, again.record.attempts), (a.id, 1));
+}
+
+/// A job whose every start ended with its instance (three lapsed leases) is failed on the
+/// claim after the third, with the reason, and is never handed out again; the next job runs.
+async fn a_job_started_max_attempts_times_without_ending_is_failed_not_run(store: Arc<dyn JobStore>) {
+    let store = &*store;
+    let (poison, next) = (add(store).await, add(store).await);
+    let mut now = T0;
+    for attempt in 1..=MAX_ATTEMPTS {
+        let claimed = claim(store, &format!("crashed-{attempt}"), now).await.unwrap();
+        assert_eq!((claimed.record.id.clone(), claimed.record.attempts), (poison.id.clone(), attempt));
+        now += LEASE_MS + 1;
+    }
+    let given_up = match store.claim(&lease("fourth", now), now, MAX_ATTEMPTS).await.unwrap() {
+        Some(Claim::GaveUp(job)) => job,
+        other => panic!("the job was handed out a fourth time: {other:?}"),
+    };
+    let reason = "the job was started 3 times without ending (--max-attempts 3): it may crash the server";
+    assert_eq!(
+        (
+            given_up.id.clone(),
+            given_up.status,
+            given_up.attempts,
+            given_up.failure,
+            given_up.message.as_deref()
+        ),
+        (poison.id.clone(), JobStatus::Failed, 3, Some(Failure::Attempts), Some(reason))
+    );
+    assert_eq!(given_up.finished_ms, Some(now));
+    assert_eq!(store.get(&poison.id).await.unwrap().unwrap(), given_up);
+    assert!(
+        !store.finish(&poison.id, "crashed-3", now + 1, succeeded(10, b"late")).await.unwrap(),
+        "its last instance cannot record an end"
+    );
+    let claimed = claim(store, "fourth", now + 2).await.unwrap();
+    assert_eq!((claimed.record.id, claimed.record.attempts), (next.id, 1));
+    assert!(claim(store, "fifth", now + 3).await.is_none(), "the failed job is never claimed");
 }
 
 async fn results_are_kept_whole_until_their_retention_ends(store: Arc<dyn JobStore>) {
@@ -399,6 +443,7 @@ every_backend!(
     renewals_record_progress_and_carry_cancellation,
     cancelling_a_queued_or_abandoned_job_ends_it_at_once,
     a_released_job_runs_again_from_the_start,
+    a_job_started_max_attempts_times_without_ending_is_failed_not_run,
     results_are_kept_whole_until_their_retention_ends,
     shutdown_cancels_only_queued_jobs,
     racing_claimers_never_share_a_job,

@@ -4,6 +4,12 @@
 //! scene's `output.format` (NPY becomes NPZ when the scene records more than positions). A result
 //! kept as JSON, drape's canonical and lossless form, can be served later in any other format:
 //! [`transcode`] reads it back and encodes it again, with the same numbers.
+//!
+//! Encoding a large recording takes a while, so it can be stopped like the run: the bytes go
+//! through [`UnlessStopped`], which fails the next write once its caller's `stop` says so (the
+//! encoders write through a buffer, so it looks once per buffer's worth).
+
+use std::io::{self, Write};
 
 use bytes::Bytes;
 
@@ -13,12 +19,59 @@ use crate::run::Recording;
 use crate::scene::FieldError;
 use crate::scene::Output;
 
-/// Encodes a recording in the format its scene's `output` asks for.
-pub fn encode_result(recording: &Recording, output: &Output) -> std::io::Result<StoredResult> {
+/// Encodes a recording in the format its scene's `output` asks for, unless `stop` turns true
+/// meanwhile: then the error is [`EncodingCancelled`].
+pub fn encode_result(
+    recording: &Recording,
+    output: &Output,
+    stop: &dyn Fn() -> bool,
+) -> io::Result<StoredResult> {
     let format = output.format.for_fields(&output.fields);
     let mut bytes = Vec::new();
-    encode(recording, format, &mut bytes)?;
+    encode(recording, format, UnlessStopped { inner: &mut bytes, stop })?;
     Ok(StoredResult { media_type: format.media_type(), bytes: Bytes::from(bytes) })
+}
+
+/// Why [`encode_result`] stopped: its job was cancelled (by a client, its wall time or a
+/// shutdown) while it encoded.
+#[derive(Debug, thiserror::Error)]
+#[error("the job was stopped while its result was being encoded")]
+pub struct EncodingCancelled;
+
+impl EncodingCancelled {
+    /// Whether an encoder's error is this one.
+    pub fn is(error: &io::Error) -> bool {
+        error.get_ref().is_some_and(|inner| inner.is::<Self>())
+    }
+}
+
+/// A writer that fails once `stop` is true. Its error is not `ErrorKind::Interrupted`, which
+/// `write_all` would retry for ever.
+struct UnlessStopped<'a, W> {
+    inner: W,
+    stop: &'a dyn Fn() -> bool,
+}
+
+impl<W: Write> UnlessStopped<'_, W> {
+    fn check(&self) -> io::Result<()> {
+        if (self.stop)() { Err(io::Error::other(EncodingCancelled)) } else { Ok(()) }
+    }
+}
+
+impl<W: Write> Write for UnlessStopped<'_, W> {
+    fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
+        self.check()?;
+        self.inner.write(buf)
+    }
+
+    fn write_all(&mut self, buf: &[u8]) -> io::Result<()> {
+        self.check()?;
+        self.inner.write_all(buf)
+    }
+
+    fn flush(&mut self) -> io::Result<()> {
+        self.inner.flush()
+    }
 }
 
 /// Why a stored result cannot be served in another format.
@@ -58,4 +111,42 @@ pub fn transcode(stored: StoredResult, format: Format) -> Result<StoredResult, T
     let mut bytes = Vec::new();
     encode(&recording, format, &mut bytes).map_err(|e| TranscodeError::Broken(e.to_string()))?;
     Ok(StoredResult { media_type: format.media_type(), bytes: Bytes::from(bytes) })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_stop_fails_the_next_write_and_nothing_more_is_written() {
+        let stopped = std::sync::atomic::AtomicBool::new(false);
+        let stop = || stopped.load(std::sync::atomic::Ordering::Relaxed);
+        let mut bytes = Vec::new();
+        let mut writer = UnlessStopped { inner: &mut bytes, stop: &stop };
+        writer.write_all(b"abc").unwrap();
+        stopped.store(true, std::sync::atomic::Ordering::Relaxed);
+        let error = writer.write_all(b"def").unwrap_err();
+        assert!(EncodingCancelled::is(&error), "{error}");
+        assert_ne!(error.kind(), io::ErrorKind::Interrupted);
+        assert!(writer.write(b"g").is_err_and(|e| EncodingCancelled::is(&e)));
+        assert_eq!(bytes, b"abc");
+    }
+
+    #[test]
+    fn a_stop_inside_a_json_encoding_is_found_through_serde_jsons_error() {
+        let recording = crate::scene::Scene::from_json(
+            br#"{"duration": 0.1, "dt": 0.01, "bodies": [{"type": "chain", "count": 3000}]}"#,
+        )
+        .map(|scene| crate::run::execute(&scene.compile(), &crate::run::Control::new()))
+        .unwrap();
+        let error = encode_result(&recording, &Output::default(), &|| true).unwrap_err();
+        assert!(EncodingCancelled::is(&error), "{error}");
+        assert!(encode_result(&recording, &Output::default(), &|| false).is_ok());
+    }
+
+    #[test]
+    fn is_only_true_of_the_cancellation() {
+        assert!(!EncodingCancelled::is(&io::Error::other("disk full")));
+        assert!(!EncodingCancelled::is(&io::Error::from(io::ErrorKind::WriteZero)));
+    }
 }

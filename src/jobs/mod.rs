@@ -11,7 +11,9 @@
 //! (several instances, one queue); [`StoreUrl`] picks one. The HTTP API talks to this module,
 //! never to the solver.
 //! [`Sweeps`] queues every run of a sweep as a job and assembles its table from their results.
+//! [`check_untrusted`] takes a scene's bytes through all of admission and compilation at once.
 
+mod cost;
 mod encode;
 mod fingerprint;
 mod id;
@@ -27,11 +29,13 @@ mod sqlite;
 mod status;
 mod store;
 mod sweeps;
+mod untrusted;
 
-pub use encode::{TranscodeError, encode_result, transcode};
+pub use cost::{Cost, IMPLICIT_PASSES, StageCost};
+pub use encode::{EncodingCancelled, TranscodeError, encode_result, transcode};
 pub use fingerprint::fingerprint;
 pub use id::JobId;
-pub use limits::Limits;
+pub use limits::{Admitted, Limits, bytes};
 pub use memory::MemoryStore;
 pub use open::StoreUrl;
 pub use postgres::PostgresStore;
@@ -40,6 +44,8 @@ pub use service::{BeforeRun, Cancelled, Ended, Jobs, JobsConfig, Submission, Sub
 pub use sqlite::SqliteStore;
 pub use status::{Failure, JobStatus};
 pub use store::{
-    CancelRequest, Claimed, Inserted, JobStore, Lease, Outcome, Page, Renewed, StoreError, StoredResult,
+    CancelRequest, Claim, Claimed, Inserted, JobStore, Lease, Outcome, Page, Renewed, StoreError,
+    StoredResult, attempts_exhausted,
 };
-pub use sweeps::{SweepRecord, SweepState, SweepSubmitError, Sweeps};
+pub use sweeps::{SweepRecord, SweepState, SweepSubmitError, Sweeps, admit_for_table, sweep_over_limit};
+pub use untrusted::{Refusal, check_untrusted};

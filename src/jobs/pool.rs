@@ -3,7 +3,10 @@
 //!
 //! Each worker is a plain thread that claims a job from the store, reads its scene, runs it with
 //! [`run::execute`](crate::run::execute) inside `catch_unwind` (so a panic fails that job alone),
-//! encodes the result and stores it. Workers talk to the async store by blocking on the
+//! encodes the result and stores it. A claim is committed before the job starts; a worker whose
+//! claim fails backs off and starts nothing, and a claimed job this instance already runs (its
+//! lease lapsed while the store failed) is not started a second time. "job ended" is logged once
+//! the end is committed. Workers talk to the async store by blocking on the
 //! runtime's handle, which is allowed because they are not runtime threads; the solver's step
 //! loop never touches the store. The watchdog thread wakes many times a second: it cancels,
 //! through their `Control`, jobs past their wall time (the worker then marks them failed), and
@@ -17,8 +20,9 @@ use std::sync::atomic::Ordering;
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
+use super::encode::EncodingCancelled;
 use super::service::{Live, Shared};
-use super::store::{Claimed, Outcome, Renewed};
+use super::store::{Claim, Claimed, Outcome, Renewed};
 use super::{Failure, JobId, JobStatus, encode_result, now_ms};
 use crate::output::stats_json;
 use crate::run::{Status, execute};
@@ -30,6 +34,9 @@ const WATCHDOG_PERIOD: Duration = Duration::from_millis(25);
 /// another instance reaches the job within this.
 pub(super) const RENEW_PERIOD: Duration = Duration::from_millis(250);
 
+/// The longest a worker waits before trying the store again after a failed claim.
+const MOST_BACKOFF: Duration = Duration::from_secs(5);
+
 /// Starts `count` workers.
 pub(super) fn spawn_workers(shared: &Arc<Shared>, count: usize) -> Vec<JoinHandle<()>> {
     (0..count)
@@ -37,34 +44,70 @@ pub(super) fn spawn_workers(shared: &Arc<Shared>, count: usize) -> Vec<JoinHandl
             let shared = Arc::clone(shared);
             std::thread::Builder::new()
                 .name(format!("drape-worker-{n}"))
-                .spawn(move || {
-                    while !shared.stopped.load(Ordering::Relaxed) {
-                        match shared.runtime.block_on(shared.store.claim(&shared.lease(), now_ms())) {
-                            Ok(Some(claimed)) => run_job(&shared, claimed),
-                            Ok(None) => {
-                                shared.doorbell.wait(shared.config.idle_poll);
-                            }
-                            Err(e) => {
-                                tracing::error!(error = %e, "cannot claim a job");
-                                shared.doorbell.wait(shared.config.idle_poll);
-                            }
-                        }
-                    }
-                })
+                .spawn(move || work(&shared))
                 .expect("the operating system can start a worker thread")
         })
         .collect()
+}
+
+/// A worker's loop: claim, run, record, until the job system stops.
+fn work(shared: &Shared) {
+    let mut backoff = shared.config.idle_poll;
+    while !shared.stopped.load(Ordering::Relaxed) {
+        let lease = shared.lease();
+        match shared.runtime.block_on(shared.store.claim(&lease, now_ms(), shared.config.max_attempts)) {
+            Ok(Some(Claim::Run(claimed))) => {
+                backoff = shared.config.idle_poll;
+                if shared.is_live(&claimed.record.id) {
+                    // Its lease lapsed while this instance ran it (renewals failed), and this
+                    // claim took it again: the copy already running keeps it.
+                    tracing::warn!(job = %claimed.record.id, "claimed a job this instance already runs; not starting it again");
+                } else {
+                    run_job(shared, claimed);
+                }
+            }
+            Ok(Some(Claim::GaveUp(record))) => {
+                tracing::error!(
+                    job = %record.id,
+                    attempts = record.attempts,
+                    "job failed: it was started --max-attempts times without ending, so it is not run again"
+                );
+                shared.changed();
+            }
+            Ok(None) => {
+                backoff = shared.config.idle_poll;
+                shared.doorbell.wait(shared.config.idle_poll);
+            }
+            Err(e) => {
+                tracing::error!(error = %e, retry_in_s = backoff.as_secs_f64(), "cannot claim a job; starting none until a claim is stored");
+                sleep_unless_stopped(shared, backoff);
+                backoff = (backoff * 2).min(MOST_BACKOFF);
+            }
+        }
+    }
+}
+
+/// Sleeps for `duration`, or less if the job system stops meanwhile.
+fn sleep_unless_stopped(shared: &Shared, duration: Duration) {
+    let until = Instant::now() + duration;
+    while !shared.stopped.load(Ordering::Relaxed) {
+        let left = until.saturating_duration_since(Instant::now());
+        if left.is_zero() {
+            return;
+        }
+        std::thread::sleep(left.min(WATCHDOG_PERIOD));
+    }
 }
 
 /// Reads a claimed job's stored scene and admits it under this instance's limits.
 fn compile(shared: &Shared, scene: &str) -> Result<Compiled, String> {
     let document = serde_json::from_str(scene).map_err(|e| format!("the stored scene is not JSON: {e}"))?;
     let scene = Scene::from_value(document).map_err(|e| format!("the stored scene is not valid: {e}"))?;
-    let (compiled, _) = shared.config.limits.admit(&scene).map_err(|errors| {
+    let admitted = shared.config.limits.admit(&scene).map_err(|errors| {
         let reasons: Vec<String> = errors.iter().map(ToString::to_string).collect();
         format!("the scene exceeds this instance's limits: {}", reasons.join("; "))
     })?;
-    Ok(compiled)
+    Ok(admitted.compiled)
 }
 
 fn run_job(shared: &Shared, claimed: Claimed) {
@@ -87,31 +130,66 @@ fn run_job(shared: &Shared, claimed: Claimed) {
             hook(&compiled);
         }
         let recording = execute(&compiled, &live.control);
-        let encoded = encode_result(&recording, &compiled.output);
-        Ok((recording.stats, encoded))
+        // A run a client cancelled keeps the frames it made, so its encoding stops only for the
+        // wall time or a shutdown; any other run's stops for any cancellation.
+        let run_cancelled = recording.stats.status == Status::Cancelled;
+        let stop = || {
+            if run_cancelled {
+                live.timed_out.load(Ordering::Relaxed) || live.shutting_down.load(Ordering::Relaxed)
+            } else {
+                live.control.is_cancelled()
+            }
+        };
+        let encoded = encode_result(&recording, &compiled.output, &stop);
+        let stopped_encoding = encoded.as_ref().is_err_and(|e| EncodingCancelled::is(e) || stop());
+        Ok((recording.stats, encoded, stopped_encoding))
     }));
 
     let steps_done = live.control.steps_done();
-    let outcome = match ran {
-        Ok(Ok((stats, Ok(result)))) => {
-            let (status, message) = match stats.status {
-                Status::Succeeded => (JobStatus::Succeeded, None),
-                Status::Diverged => (JobStatus::Diverged, stats.diverged.as_ref().map(|d| d.reason.clone())),
-                Status::Cancelled if live.timed_out.load(Ordering::Relaxed) => (
-                    JobStatus::Failed,
-                    Some(format!(
-                        "the job exceeded the wall-time limit of {} s after {steps_done} of {} steps",
-                        shared.config.wall_time.as_secs_f64(),
-                        live.plan.steps
-                    )),
+    let stopped = |stats: &crate::run::Stats, result| {
+        let (status, message) = if live.timed_out.load(Ordering::Relaxed) {
+            (
+                JobStatus::Failed,
+                format!(
+                    "the job exceeded the wall-time limit of {} s after {steps_done} of {} steps",
+                    shared.config.wall_time.as_secs_f64(),
+                    live.plan.steps
                 ),
-                Status::Cancelled => (JobStatus::Cancelled, Some(live.cancel_reason())),
-            };
-            let failure = (status == JobStatus::Failed).then_some(Failure::WallTime);
-            let result = failure.is_none().then_some(result);
-            Outcome { status, steps_done, message, failure, stats: Some(stats_json(&stats)), result }
+            )
+        } else {
+            (JobStatus::Cancelled, live.cancel_reason())
+        };
+        let failure = (status == JobStatus::Failed).then_some(Failure::WallTime);
+        let result = if failure.is_none() { result } else { None };
+        Outcome {
+            status,
+            steps_done,
+            message: Some(message),
+            failure,
+            stats: Some(stats_json(stats)),
+            result,
         }
-        Ok(Ok((_, Err(e)))) => {
+    };
+    let outcome = match ran {
+        Ok(Ok((stats, Ok(result), _))) => match stats.status {
+            Status::Succeeded => success(JobStatus::Succeeded, steps_done, None, &stats, result),
+            Status::Diverged => {
+                let reason = stats.diverged.as_ref().map(|d| d.reason.clone());
+                success(JobStatus::Diverged, steps_done, reason, &stats, result)
+            }
+            Status::Cancelled => stopped(&stats, Some(result)),
+            Status::Failed => Outcome {
+                status: JobStatus::Failed,
+                steps_done,
+                message: stats.failure.clone(),
+                failure: Some(Failure::Limit),
+                stats: Some(stats_json(&stats)),
+                result: None,
+            },
+        },
+        // Stopped while encoding: the run's own end no longer matters.
+        Ok(Ok((stats, Err(_), true))) => stopped(&stats, None),
+        Ok(Ok((_, Err(e), false))) => {
             failed(steps_done, Failure::Encoding, format!("the result could not be encoded: {e}"))
         }
         // A scene that was valid when submitted: another instance with other limits, or a newer
@@ -130,8 +208,24 @@ fn run_job(shared: &Shared, claimed: Claimed) {
     let work = live.plan.particles.saturating_mul(steps_done.saturating_add(companions));
     shared.particle_steps.fetch_add(work, Ordering::Relaxed);
     shared.busy_nanos.fetch_add(elapsed.as_nanos() as u64, Ordering::Relaxed);
-    tracing::info!(job = %id, status = outcome.status.name(), wall_time_s = elapsed.as_secs_f64(), "job ended");
     shared.finish(id, &live, outcome);
+}
+
+fn success(
+    status: JobStatus,
+    steps_done: u64,
+    message: Option<String>,
+    stats: &crate::run::Stats,
+    result: super::StoredResult,
+) -> Outcome {
+    Outcome {
+        status,
+        steps_done,
+        message,
+        failure: None,
+        stats: Some(stats_json(stats)),
+        result: Some(result),
+    }
 }
 
 fn failed(steps_done: u64, failure: Failure, message: String) -> Outcome {
@@ -172,7 +266,9 @@ pub(super) fn spawn_watchdog(shared: &Arc<Shared>) -> JoinHandle<()> {
                 if last_renewal.elapsed() >= RENEW_PERIOD {
                     last_renewal = Instant::now();
                     for (id, live) in &running {
-                        renew(&shared, id, live);
+                        if !live.ending.load(Ordering::Relaxed) {
+                            renew(&shared, id, live);
+                        }
                     }
                 }
             }
@@ -187,8 +283,9 @@ fn renew(shared: &Shared, id: &JobId, live: &Live) {
     match shared.runtime.block_on(shared.store.renew(id, &lease, live.control.steps_done())) {
         Ok(Renewed::Held { cancel_requested: false }) => {}
         Ok(Renewed::Held { cancel_requested: true }) => live.control.cancel(),
-        // A job that just ended here is no longer running in the store either.
-        Ok(Renewed::Lost) if live.status.borrow().is_final() => {}
+        // A job whose end is being recorded here is, or is about to be, no longer running in
+        // the store: its end was read after the renewal, so this is not a lost lease.
+        Ok(Renewed::Lost) if live.ending.load(Ordering::Acquire) => {}
         Ok(Renewed::Lost) => {
             tracing::warn!(job = %id, "the job's lease was lost; stopping it here");
             live.lease_lost.store(true, Ordering::Relaxed);

@@ -47,6 +47,9 @@ pub struct JobsConfig {
     /// of: queued by another instance sharing the store, or left by one that died. A job queued
     /// through this instance wakes a worker at once.
     pub idle_poll: Duration,
+    /// Starts a job may have without ending (each crashed or lost its instance) before it is
+    /// failed rather than started again.
+    pub max_attempts: u32,
 }
 
 impl Default for JobsConfig {
@@ -60,6 +63,7 @@ impl Default for JobsConfig {
             lease: Duration::from_secs(30),
             result_ttl: Duration::from_secs(24 * 3600),
             idle_poll: Duration::from_millis(200),
+            max_attempts: 3,
         }
     }
 }
@@ -74,7 +78,7 @@ pub struct Submission {
     pub fingerprint: u64,
     /// The client's `Idempotency-Key`.
     pub idempotency_key: Option<String>,
-    /// Refuse the job if its particle-steps exceed this.
+    /// Refuse the job if its work (element-steps, see [`Cost`](super::Cost)) exceeds this.
     pub max_work: Option<u64>,
 }
 
@@ -103,12 +107,18 @@ pub enum SubmitError {
     #[error("the scene exceeds this server's limits")]
     OverLimit(Vec<FieldError>),
     /// The run is larger than the caller's `max_work`.
-    #[error("the run needs {work} particle-steps, over the budget of {budget}")]
+    #[error("the run needs {work} element-steps, over the budget of {budget}")]
     OverBudget {
-        /// Particle-steps of the run.
+        /// Element-steps of the run.
         work: u64,
         /// The budget.
         budget: u64,
+        /// The field of the stage that costs the most work.
+        pointer: String,
+        /// That stage, and its share of the work.
+        stage: &'static str,
+        /// Its element-steps.
+        stage_work: u64,
     },
     /// The idempotency key was first used with another body.
     #[error("the Idempotency-Key `{key}` was already used for job {job} with a different scene")]
@@ -134,8 +144,8 @@ pub enum SubmitError {
 pub enum Cancelled {
     /// The job was waiting; it was taken out of the queue and will not run.
     Dropped(JobRecord),
-    /// The job is running; it stops at its next batch of steps (within a second if it runs on
-    /// another instance).
+    /// The job is running; it stops within a step or a solver iteration (within a second if it
+    /// runs on another instance).
     Stopping(JobRecord),
     /// The job had already ended.
     AlreadyEnded(JobRecord),
@@ -164,6 +174,9 @@ pub(super) struct Shared {
     pub(super) workers_gone: AtomicBool,
     /// Submissions between their room check and their insert.
     admitting: AtomicUsize,
+    /// One admission at a time: each compiles its scene (up to the particle and spring limits),
+    /// and that memory is held outside every job's share.
+    admission: tokio::sync::Semaphore,
     /// Bumped whenever a job starts or ends here, to wake waiters.
     changes: watch::Sender<u64>,
     live: Mutex<HashMap<JobId, Arc<Live>>>,
@@ -182,7 +195,10 @@ pub(super) struct Live {
     pub(super) lease_lost: AtomicBool,
     /// Shutdown stopped it and it goes back to the queue, to run again after a restart.
     pub(super) released: AtomicBool,
-    shutting_down: AtomicBool,
+    /// Its end is being recorded (or was): the watchdog leaves its lease alone, and a second
+    /// recording (a worker returning after shutdown gave up on it) does nothing.
+    pub(super) ending: AtomicBool,
+    pub(super) shutting_down: AtomicBool,
     /// The result once it is stored, for whoever waits on the job here: `POST /simulate`
     /// answers with it without reading it back from the store.
     result: Mutex<Option<StoredResult>>,
@@ -198,6 +214,7 @@ impl Live {
             timed_out: AtomicBool::new(false),
             lease_lost: AtomicBool::new(false),
             released: AtomicBool::new(false),
+            ending: AtomicBool::new(false),
             shutting_down: AtomicBool::new(false),
             result: Mutex::new(None),
         }
@@ -269,36 +286,61 @@ impl Shared {
         Lease { owner: self.owner.clone(), until_ms: now_ms() + self.config.lease.as_millis() as u64 }
     }
 
-    /// Records that a job started here.
-    pub(super) fn started(&self, id: &JobId, live: &Arc<Live>) {
-        self.live().insert(id.clone(), Arc::clone(live));
+    /// Whether a job runs here.
+    pub(super) fn is_live(&self, id: &JobId) -> bool {
+        self.live().contains_key(id)
+    }
+
+    /// Wakes whoever waits for a job to start or end here.
+    pub(super) fn changed(&self) {
         self.changes.send_modify(|n| *n += 1);
     }
 
-    /// Records the end of a job run here (unless it is no longer ours, or goes back to the
-    /// queue), tells its watchers, and forgets it.
+    /// Records that a job started here.
+    pub(super) fn started(&self, id: &JobId, live: &Arc<Live>) {
+        self.live().insert(id.clone(), Arc::clone(live));
+        self.changed();
+    }
+
+    /// [`record_end`](Self::record_end) from a worker thread.
     pub(super) fn finish(&self, id: &JobId, live: &Live, outcome: Outcome) {
+        self.runtime.block_on(self.record_end(id, live, outcome));
+    }
+
+    /// Records the end of a job run here (unless it is no longer ours, or goes back to the
+    /// queue), logs it once it is committed, tells its watchers, and forgets it. Only the first
+    /// call for a job does anything.
+    pub(super) async fn record_end(&self, id: &JobId, live: &Live, outcome: Outcome) {
+        if live.ending.swap(true, Ordering::SeqCst) {
+            return;
+        }
         let status = outcome.status;
         if live.released.load(Ordering::Relaxed) {
-            if let Err(e) = self.runtime.block_on(self.store.release(id, &self.owner)) {
-                tracing::error!(job = %id, error = %e, "cannot put the job back in the queue");
+            match self.store.release(id, &self.owner).await {
+                Ok(()) => tracing::info!(job = %id, "job put back in the queue for the next instance"),
+                Err(e) => tracing::error!(job = %id, error = %e, "cannot put the job back in the queue"),
             }
-            tracing::info!(job = %id, "job put back in the queue for the next instance");
         } else if live.lease_lost.load(Ordering::Relaxed) {
             tracing::warn!(job = %id, "the job is no longer this instance's; its end here is not recorded");
         } else {
             let result = outcome.result.clone();
-            match self.runtime.block_on(self.store.finish(id, &self.owner, now_ms(), outcome)) {
+            match self.store.finish(id, &self.owner, now_ms(), outcome).await {
                 Ok(true) => {
+                    let wall_time_s = live.started.elapsed().as_secs_f64();
+                    tracing::info!(job = %id, status = status.name(), wall_time_s, "job ended");
                     *live.result.lock().unwrap_or_else(PoisonError::into_inner) = result;
                     live.status.send_replace(status);
                 }
                 Ok(false) => tracing::warn!(job = %id, "lost the job's lease; its end here is not recorded"),
-                Err(e) => tracing::error!(job = %id, error = %e, "cannot store the end of the job"),
+                Err(e) => tracing::error!(
+                    job = %id,
+                    error = %e,
+                    "cannot store the end of the job; it runs again once its lease lapses"
+                ),
             }
         }
         self.live().remove(id);
-        self.changes.send_modify(|n| *n += 1);
+        self.changed();
     }
 }
 
@@ -319,6 +361,7 @@ impl Jobs {
             stopped: AtomicBool::new(false),
             workers_gone: AtomicBool::new(false),
             admitting: AtomicUsize::new(0),
+            admission: tokio::sync::Semaphore::new(1),
             changes: watch::Sender::new(0),
             live: Mutex::new(HashMap::new()),
             threads: Mutex::new(Vec::new()),
@@ -328,6 +371,24 @@ impl Jobs {
         *shared.threads.lock().unwrap_or_else(PoisonError::into_inner) = threads;
         tokio::spawn(sweep_results(Arc::downgrade(&shared)));
         Self { shared }
+    }
+
+    /// Runs `check` with the limits on a blocking thread, one admission at a time: it may
+    /// compile scenes, which allocates their particles and springs.
+    pub(super) async fn admitting<T: Send + 'static>(
+        &self,
+        check: impl FnOnce(&Limits) -> T + Send + 'static,
+    ) -> Result<T, StoreError> {
+        let _turn = self
+            .shared
+            .admission
+            .acquire()
+            .await
+            .map_err(|e| StoreError::Backend(format!("admission closed: {e}")))?;
+        let limits = *self.limits();
+        tokio::task::spawn_blocking(move || check(&limits))
+            .await
+            .map_err(|e| StoreError::Backend(format!("admission task failed: {e}")))
     }
 
     /// The limits scenes are admitted under.
@@ -373,15 +434,21 @@ impl Jobs {
         }
         // Admission counts particles and springs, then compiles (which allocates them), so it
         // runs off the async threads.
-        let limits = *self.limits();
-        let plan = tokio::task::spawn_blocking(move || limits.admit(&scene).map(|(_, plan)| plan))
-            .await
-            .map_err(|e| StoreError::Backend(format!("admission task failed: {e}")))?
+        let (plan, cost) = self
+            .admitting(move |limits| limits.admit(&scene).map(|a| (a.plan, a.cost)))
+            .await?
             .map_err(SubmitError::OverLimit)?;
         if let Some(budget) = max_work
-            && plan.work() > budget
+            && cost.work() > budget
         {
-            return Err(SubmitError::OverBudget { work: plan.work(), budget });
+            let largest = cost.largest(|s| s.work).expect("a run has a stage");
+            return Err(SubmitError::OverBudget {
+                work: cost.work(),
+                budget,
+                pointer: largest.pointer.clone(),
+                stage: largest.stage,
+                stage_work: largest.work,
+            });
         }
 
         let id = JobId::new();
@@ -465,8 +532,14 @@ impl Jobs {
         loop {
             let live = self.shared.live().get(id).cloned();
             if let Some(live) = &live {
-                // Subscribing to the job's own channel holds it open even after the job is forgotten.
-                let _ = live.status.subscribe().wait_for(|s| s.is_final()).await;
+                // Subscribing to the job's own channel holds it open even after the job is
+                // forgotten. A job whose end is not recorded here (the store failed, it went back
+                // to the queue) never turns final on it: any start or end here looks again.
+                let mut status = live.status.subscribe();
+                tokio::select! {
+                    _ = status.wait_for(|s| s.is_final()) => {}
+                    _ = changes.changed() => {}
+                }
             }
             let job = self.shared.store.get(id).await?;
             match job {
@@ -481,8 +554,9 @@ impl Jobs {
         }
     }
 
-    /// Cancels a job: a queued one is dropped, a running one stops within one batch of steps if
-    /// it runs here, and within a lease renewal if it runs on another instance.
+    /// Cancels a job: a queued one is dropped, a running one stops within a step (or a solver
+    /// iteration inside one) if it runs here, and within a lease renewal if it runs on another
+    /// instance.
     pub async fn cancel(&self, id: &JobId) -> Result<Option<Cancelled>, StoreError> {
         let shared = &self.shared;
         if let Some(live) = shared.live().get(id) {
@@ -524,8 +598,11 @@ impl Jobs {
 
     /// Stops taking jobs and lets running ones finish for up to `grace`. Then, on a durable
     /// store, jobs still running go back to the queue and queued ones stay queued, for the next
-    /// instance; on the memory store, which ends with the process, both are cancelled. Waits for
-    /// the workers to exit.
+    /// instance; on the memory store, which ends with the process, both are cancelled. A job
+    /// stopped at the end of the grace period has [`STOP_WAIT`] to return (a cancelled run
+    /// stops within a step or a solver iteration); one whose thread is still busy after that is
+    /// released (or cancelled) from here and its thread left behind, so this returns within
+    /// `grace + STOP_WAIT` and a little store time whatever the jobs do.
     pub async fn shutdown(&self, grace: Duration) {
         let shared = &self.shared;
         shared.stopped.store(true, Ordering::Relaxed);
@@ -538,7 +615,7 @@ impl Jobs {
                 }
                 Err(e) => tracing::error!(error = %e, "cannot cancel the queued jobs"),
             }
-            shared.changes.send_modify(|n| *n += 1);
+            shared.changed();
         }
         let deadline = Instant::now() + grace;
         while shared.running.load(Ordering::Relaxed) > 0 && Instant::now() < deadline {
@@ -554,21 +631,46 @@ impl Jobs {
             }
             live.control.cancel();
         }
-        let threads = std::mem::take(&mut *shared.threads.lock().unwrap_or_else(PoisonError::into_inner));
-        let shared_for_join = Arc::clone(shared);
-        let joined = tokio::task::spawn_blocking(move || {
-            // The watchdog was started last; it keeps enforcing wall time until the workers exit.
-            let mut threads = threads;
-            let watchdog = threads.pop();
-            threads.into_iter().for_each(|t| drop(t.join()));
-            shared_for_join.workers_gone.store(true, Ordering::Relaxed);
-            watchdog.into_iter().for_each(|t| drop(t.join()));
-        });
-        if joined.await.is_err() {
-            tracing::error!("a worker thread could not be joined");
+        let mut threads = std::mem::take(&mut *shared.threads.lock().unwrap_or_else(PoisonError::into_inner));
+        // The watchdog was started last; it keeps enforcing wall time until the workers exit.
+        let watchdog = threads.pop();
+        let stop_by = Instant::now() + STOP_WAIT;
+        while !threads.iter().all(JoinHandle::is_finished) && Instant::now() < stop_by {
+            tokio::time::sleep(Duration::from_millis(10)).await;
+        }
+        let (finished, stuck): (Vec<_>, Vec<_>) = threads.into_iter().partition(JoinHandle::is_finished);
+        finished.into_iter().for_each(|t| drop(t.join()));
+        shared.workers_gone.store(true, Ordering::Relaxed);
+        if let Some(watchdog) = watchdog {
+            // It wakes every WATCHDOG_PERIOD, so this wait is short.
+            let joined = tokio::task::spawn_blocking(move || watchdog.join().is_ok()).await;
+            if !matches!(joined, Ok(true)) {
+                tracing::error!("the watchdog thread could not be joined");
+            }
+        }
+        if !stuck.is_empty() {
+            tracing::error!(
+                threads = stuck.len(),
+                "worker threads did not return in time; leaving them behind"
+            );
+        }
+        for (id, live) in shared.live_jobs() {
+            let steps_done = live.control.steps_done();
+            let outcome = Outcome {
+                status: JobStatus::Cancelled,
+                steps_done,
+                message: Some(SHUT_DOWN.into()),
+                failure: None,
+                stats: None,
+                result: None,
+            };
+            shared.record_end(&id, &live, outcome).await;
         }
     }
 }
+
+/// How long a job stopped by shutdown has to return before it is given up on.
+pub const STOP_WAIT: Duration = Duration::from_secs(1);
 
 /// Counts a submission between its room check and its insert, so submissions arriving together
 /// cannot overfill the queue.

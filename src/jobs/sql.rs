@@ -7,6 +7,12 @@
 //! writer at a time, so the claiming `UPDATE` alone is atomic. [`sql_store!`] writes the
 //! [`JobStore`](super::JobStore) implementation for a backend's pool type.
 //!
+//! A claim runs in an explicit transaction and is handed over only once its commit succeeded:
+//! an `UPDATE ... RETURNING` in autocommit gives its row before the commit, whose failure (a
+//! full disk) would then go unseen, and the job, still queued, would be claimed again and run
+//! twice with `attempts` never counted. A job given up after `--max-attempts` is failed in the
+//! same transaction, its `attempts` left at the number of starts.
+//!
 //! Results are deflate-compressed on the way in and inflated on the way out.
 
 use std::io::{Read, Write};
@@ -32,6 +38,7 @@ pub(super) struct Statements {
     pub count_by_status: String,
     pub count_queued: String,
     pub claim: String,
+    pub give_up: String,
     pub renew: String,
     pub finish: String,
     pub store_result: String,
@@ -81,6 +88,11 @@ impl Statements {
                  WHERE id = (SELECT id FROM jobs WHERE {claimable} ORDER BY seq LIMIT 1 {lock}) \
                  AND {claimable} RETURNING {COLUMNS}, scene"
             )),
+            give_up: placeholders(format!(
+                "UPDATE jobs SET status = 'failed', finished_ms = $1, steps_done = 0, message = $2, \
+                 failure = 'attempts', attempts = attempts - 1, {ended} \
+                 WHERE id = $3 AND lease_owner = $4 RETURNING {COLUMNS}"
+            )),
             renew: placeholders(
                 "UPDATE jobs SET lease_until_ms = $1, steps_done = $2 \
                  WHERE id = $3 AND status = 'running' AND lease_owner = $4 RETURNING cancel_requested"
@@ -94,7 +106,8 @@ impl Statements {
                 "INSERT INTO results (job_id, media_type, body, finished_ms) VALUES ($1, $2, $3, $4)".into(),
             ),
             release: placeholders(
-                "UPDATE jobs SET status = 'queued', steps_done = 0, lease_owner = NULL, lease_until_ms = NULL \
+                "UPDATE jobs SET status = 'queued', steps_done = 0, attempts = attempts - 1, \
+                 lease_owner = NULL, lease_until_ms = NULL \
                  WHERE id = $1 AND status = 'running' AND lease_owner = $2"
                     .into(),
             ),
@@ -349,21 +362,42 @@ macro_rules! sql_store {
                 &self,
                 lease: &$crate::jobs::Lease,
                 now_ms: u64,
-            ) -> Result<Option<$crate::jobs::Claimed>, $crate::jobs::StoreError> {
-                use $crate::jobs::sql::{backend, int};
-                let row = sqlx::query_as::<_, $crate::jobs::sql::ClaimRow>(&self.sql.claim)
+                max_attempts: u32,
+            ) -> Result<Option<$crate::jobs::Claim>, $crate::jobs::StoreError> {
+                use $crate::jobs::sql::{ClaimRow, JobRow, backend, int};
+                use $crate::jobs::{Claim, Claimed, StoreError, attempts_exhausted};
+                let mut tx = self.pool.begin().await.map_err(backend)?;
+                // `fetch_all` runs the statement to its end inside the transaction.
+                let row = sqlx::query_as::<_, ClaimRow>(&self.sql.claim)
                     .bind(&lease.owner)
                     .bind(int(lease.until_ms))
                     .bind(int(now_ms))
-                    .fetch_optional(&self.pool)
+                    .fetch_all(&mut *tx)
                     .await
-                    .map_err(backend)?;
+                    .map_err(backend)?
+                    .pop();
                 let Some(row) = row else { return Ok(None) };
                 let record = row.job.into_record()?;
-                let scene = row.scene.ok_or_else(|| {
-                    $crate::jobs::StoreError::Backend(format!("job {} has no scene", record.id))
-                })?;
-                Ok(Some($crate::jobs::Claimed { record, scene }))
+                let claim = if record.attempts > max_attempts {
+                    let row = sqlx::query_as::<_, JobRow>(&self.sql.give_up)
+                        .bind(int(now_ms))
+                        .bind(attempts_exhausted(max_attempts))
+                        .bind(record.id.as_str())
+                        .bind(&lease.owner)
+                        .fetch_all(&mut *tx)
+                        .await
+                        .map_err(backend)?
+                        .pop()
+                        .ok_or_else(|| StoreError::Backend(format!("job {} was not given up", record.id)))?;
+                    Claim::GaveUp(row.into_record()?)
+                } else {
+                    let scene = row
+                        .scene
+                        .ok_or_else(|| StoreError::Backend(format!("job {} has no scene", record.id)))?;
+                    Claim::Run(Claimed { record, scene })
+                };
+                tx.commit().await.map_err(backend)?;
+                Ok(Some(claim))
             }
 
             async fn renew(

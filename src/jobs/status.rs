@@ -53,11 +53,17 @@ pub enum Failure {
     Panicked,
     /// The result could not be encoded.
     Encoding,
+    /// It was started `--max-attempts` times and never ended: each run crashed its instance or
+    /// lost it, so it is not run again.
+    Attempts,
+    /// A stage whose size is known only as it runs (self-collision's pairs) met more than the
+    /// job may hold.
+    Limit,
 }
 
 impl Failure {
     /// Every kind of failure.
-    pub const ALL: [Self; 3] = [Self::WallTime, Self::Panicked, Self::Encoding];
+    pub const ALL: [Self; 5] = [Self::WallTime, Self::Panicked, Self::Encoding, Self::Attempts, Self::Limit];
 
     /// The name the contract uses.
     pub fn name(self) -> &'static str {
@@ -65,6 +71,8 @@ impl Failure {
             Self::WallTime => "wall_time",
             Self::Panicked => "panicked",
             Self::Encoding => "encoding",
+            Self::Attempts => "attempts",
+            Self::Limit => "limit",
         }
     }
 }

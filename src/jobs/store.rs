@@ -11,6 +11,11 @@
 //! lease while it runs the job, learns there whether a cancellation was asked for, and records
 //! the end only while it still holds the job. So several instances can share one store, and a
 //! job whose instance died runs again elsewhere.
+//!
+//! A claim counts an attempt in the same atomic step that hands the job over, so a claim that
+//! cannot be committed (a full disk) hands nothing over. A job claimed after `max_attempts`
+//! starts that never ended (each crashed or lost its instance) is not handed over but failed:
+//! it may be what crashes the instances. A job released at shutdown gets its attempt back.
 
 use async_trait::async_trait;
 use bytes::Bytes;
@@ -69,6 +74,24 @@ pub struct Claimed {
     pub record: JobRecord,
     /// The scene document it was submitted with, as JSON text.
     pub scene: String,
+}
+
+/// What [`JobStore::claim`] took from the queue.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Claim {
+    /// A job to run.
+    Run(Claimed),
+    /// A job already started `max_attempts` times without ending: it is now `failed`
+    /// ([`Failure::Attempts`], [`attempts_exhausted`] as its message) and is not run.
+    GaveUp(JobRecord),
+}
+
+/// The message of a job given up after `max_attempts` starts.
+pub fn attempts_exhausted(max_attempts: u32) -> String {
+    format!(
+        "the job was started {max_attempts} times without ending (--max-attempts {max_attempts}): \
+         it may crash the server"
+    )
 }
 
 /// Who holds a claimed job, and until when.
@@ -139,8 +162,11 @@ pub trait JobStore: Send + Sync + 'static {
     async fn count_queued(&self) -> Result<u64, StoreError>;
 
     /// Takes the oldest job that is queued, or running under a lease that lapsed before `now_ms`,
-    /// marks it running under `lease` and counts the attempt; `None` if there is none.
-    async fn claim(&self, lease: &Lease, now_ms: u64) -> Result<Option<Claimed>, StoreError>;
+    /// marks it running under `lease` and counts the attempt, all in one atomic step that is
+    /// committed before it returns; `None` if there is none. A job whose `attempts` already
+    /// reached `max_attempts` is failed instead ([`Claim::GaveUp`]).
+    async fn claim(&self, lease: &Lease, now_ms: u64, max_attempts: u32)
+    -> Result<Option<Claim>, StoreError>;
 
     /// Extends the lease of a job `lease.owner` holds and records its progress.
     async fn renew(&self, id: &JobId, lease: &Lease, steps_done: u64) -> Result<Renewed, StoreError>;
@@ -154,7 +180,8 @@ pub trait JobStore: Send + Sync + 'static {
         outcome: Outcome,
     ) -> Result<bool, StoreError>;
 
-    /// Puts a job `owner` holds back in the queue, to run again from the start.
+    /// Puts a job `owner` holds back in the queue, to run again from the start; the attempt it
+    /// was claimed with is not counted.
     async fn release(&self, id: &JobId, owner: &str) -> Result<(), StoreError>;
 
     /// Cancels a job: at once if it is not running under a live lease at `now_ms`, otherwise by

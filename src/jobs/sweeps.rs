@@ -124,13 +124,12 @@ impl Sweeps {
                 ),
             )]));
         }
-        let limits = *jobs.limits();
-        let (sweep, problems) = tokio::task::spawn_blocking(move || {
-            let problems = over_limit(&sweep, &vary_lists, &limits);
-            (sweep, problems)
-        })
-        .await
-        .map_err(|e| StoreError::Backend(format!("admission task failed: {e}")))?;
+        let (sweep, problems) = jobs
+            .admitting(move |limits| {
+                let problems = over_limit(&sweep, &vary_lists, limits);
+                (sweep, problems)
+            })
+            .await?;
         if !problems.is_empty() {
             return Err(SweepSubmitError::OverLimit(problems));
         }
@@ -285,6 +284,27 @@ fn assemble(record: &SweepRecord, fresh: Vec<(usize, StoredRun)>) -> SweepState 
     };
     let table = Table::assemble(&record.sweep, reference, variants);
     SweepState { table, finished, runs: outcomes.len() }
+}
+
+/// Every limit a run of `sweep` (read from `document`) exceeds when run for its table (final
+/// positions only), each at the `vary` entry to blame or at the base scene's field: what
+/// `POST /sweeps` refuses, for a sweep run elsewhere (`drape sweep`).
+pub fn sweep_over_limit(document: &Value, sweep: &Sweep, limits: &super::Limits) -> Vec<FieldError> {
+    let mut sweep = sweep.clone();
+    sweep.reference.iter_mut().for_each(keep_final_positions);
+    sweep.variants.iter_mut().for_each(|v| keep_final_positions(&mut v.scene));
+    over_limit(&sweep, &vary_lists(document), limits)
+}
+
+/// A scene as a sweep runs it for its table, admitted under `limits` (with its self-collision
+/// cap set), or the limits it exceeds.
+pub fn admit_for_table(
+    scene: &Scene,
+    limits: &super::Limits,
+) -> Result<crate::scene::Compiled, Vec<FieldError>> {
+    let mut scene = scene.clone();
+    keep_final_positions(&mut scene);
+    limits.admit(&scene).map(|admitted| admitted.compiled)
 }
 
 /// The values listed under each `vary` pointer, in document order.

@@ -1,11 +1,17 @@
 //! The handle through which a caller follows and cancels a run from another thread.
+//!
+//! Cancelling raises the run's [`Interrupt`], the flag its simulations (the main run and the
+//! error estimate's companions) look at inside every step, so a cancellation reaches a run even
+//! in the middle of a long linear solve; encoders given the control stop at their next write.
 
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use crate::solver::Interrupt;
 
 /// Progress and cancellation of one run, shared between the runner and its caller.
 #[derive(Debug, Default)]
 pub struct Control {
-    cancelled: AtomicBool,
+    cancelled: Interrupt,
     steps_done: AtomicU64,
 }
 
@@ -15,14 +21,19 @@ impl Control {
         Self::default()
     }
 
-    /// Asks the run to stop at its next batch boundary.
+    /// Asks the run to stop: the step under way gives up at its next look at the flag.
     pub fn cancel(&self) {
-        self.cancelled.store(true, Ordering::Relaxed);
+        self.cancelled.raise();
     }
 
     /// Whether cancellation was asked for.
     pub fn is_cancelled(&self) -> bool {
-        self.cancelled.load(Ordering::Relaxed)
+        self.cancelled.is_raised()
+    }
+
+    /// The flag a simulation of this run is handed.
+    pub fn interrupt(&self) -> Interrupt {
+        self.cancelled.clone()
     }
 
     /// Steps taken so far.

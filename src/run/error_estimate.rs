@@ -131,6 +131,11 @@ fn run_companion(
             ),
             None => format!("the companion at dt = {:.3e} s diverged", coarse.config.dt),
         }),
+        (Status::Failed, _) => Err(format!(
+            "the companion at dt = {:.3e} s failed: {}",
+            coarse.config.dt,
+            recording.stats.failure.as_deref().unwrap_or("a stage met more than it may hold")
+        )),
         _ => Err("the companion run was cancelled".into()),
     };
     Companion { result, wall_time_s: started.elapsed().as_secs_f64() }

@@ -4,7 +4,10 @@
 //! [`execute`] is synchronous and blocking; the command line calls it directly and the job
 //! workers call it on their own threads. It steps in batches, and between batches publishes
 //! progress and honours cancellation through a [`Control`] shared with the caller (atomics only,
-//! so the step loop takes no lock). Only the fields the scene asks for are computed.
+//! so the step loop takes no lock). Cancellation also reaches inside a step: the simulation holds
+//! the control's [`Interrupt`](crate::solver::Interrupt) and gives up its step part-way, and the
+//! run ends cancelled with the frames recorded before. Only the fields the scene asks for are
+//! computed.
 
 mod control;
 mod error_estimate;
@@ -20,7 +23,7 @@ pub use recording::{Diverged, Frames, Recording, Samples, Stats, Status};
 use glam::DVec3;
 
 use crate::scene::{Compiled, ErrorEstimateName, Field, FrameSelection, Precision};
-use crate::solver::{Real, Simulation, Vec3, Vectors, parallel};
+use crate::solver::{Real, Simulation, StepError, Vec3, Vectors, parallel};
 use schedule::FrameSchedule;
 
 /// Steps between checks of cancellation, progress and rest, when no frame falls sooner.
@@ -33,6 +36,26 @@ pub fn execute(compiled: &Compiled, control: &Control) -> Recording {
     parallel::install(|| match compiled.error_estimate {
         ErrorEstimateName::None => simulate(compiled, control, true).recording,
         method => error_estimate::execute_with_estimate(compiled, control, method),
+    })
+}
+
+/// Builds what a run of `compiled` builds before its first step (its simulation in the scene's
+/// precision, the frame schedule and the recorder's buffers), takes no step, and drops it all.
+/// It is what [`execute`] would allocate up front, so that an admitted scene can be checked to
+/// build without running it.
+pub fn prepare(compiled: &Compiled) {
+    fn prepare_in<T: Real>(compiled: &Compiled)
+    where
+        Samples: From<Vec<T>>,
+    {
+        let simulation = Simulation::<T>::new(&compiled.model, &compiled.config);
+        let schedule = FrameSchedule::new(compiled);
+        let recorder = Recorder::<T>::new(compiled, &simulation);
+        drop((recorder, schedule, simulation));
+    }
+    parallel::install(|| match compiled.precision {
+        Precision::F32 => prepare_in::<f32>(compiled),
+        Precision::F64 => prepare_in::<f64>(compiled),
     })
 }
 
@@ -57,11 +80,13 @@ where
 {
     let started = Instant::now();
     let mut simulation = Simulation::<T>::new(&compiled.model, &compiled.config);
+    simulation.set_interrupt(control.interrupt());
     let schedule = FrameSchedule::new(compiled);
     let mut recorder = Recorder::<T>::new(compiled, &simulation);
     let mut next_frame = 0;
     let mut status = Status::Succeeded;
     let mut divergence = None;
+    let mut failure = None;
     let mut rest_time = None;
 
     loop {
@@ -88,10 +113,22 @@ where
             break;
         }
         let target = schedule.steps.get(next_frame).copied().unwrap_or(compiled.steps).min(taken + BATCH);
-        if let Err(d) = (taken..target).try_for_each(|_| simulation.step()) {
-            status = Status::Diverged;
-            divergence = Some(d);
-            break;
+        match (taken..target).try_for_each(|_| simulation.step()) {
+            Ok(()) => {}
+            Err(StepError::Diverged(d)) => {
+                status = Status::Diverged;
+                divergence = Some(d);
+                break;
+            }
+            Err(StepError::Interrupted) => {
+                status = Status::Cancelled;
+                break;
+            }
+            Err(StepError::LimitReached(reached)) => {
+                status = Status::Failed;
+                failure = Some(reached.to_string());
+                break;
+            }
         }
         if publish_progress {
             control.set_progress(simulation.steps_taken());
@@ -127,6 +164,7 @@ where
             reason: d.reason.to_string(),
             suggested_dt: stable_dt.map(|h| 0.5 * h),
         }),
+        failure,
         stopped_at_rest: rest_time,
         linear_solver: simulation.linear_solve_stats(),
         error: None,

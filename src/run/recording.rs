@@ -13,6 +13,8 @@ pub enum Status {
     Diverged,
     /// Stopped because the caller asked.
     Cancelled,
+    /// Stopped because a stage met more than the run may hold (`Stats::failure` says what).
+    Failed,
 }
 
 impl Status {
@@ -22,6 +24,7 @@ impl Status {
             Self::Succeeded => "succeeded",
             Self::Diverged => "diverged",
             Self::Cancelled => "cancelled",
+            Self::Failed => "failed",
         }
     }
 }
@@ -139,6 +142,8 @@ pub struct Stats {
     pub stable_dt: Option<f64>,
     /// Present when the run diverged.
     pub diverged: Option<Diverged>,
+    /// Why the run failed, when it did.
+    pub failure: Option<String>,
     /// The time at which every particle was found slower than `stop_at_rest`, if it was.
     pub stopped_at_rest: Option<f64>,
     /// Implicit Euler's conjugate-gradient figures.

@@ -22,10 +22,17 @@ impl FrameSchedule {
             FrameSelection::All => {
                 let interval = 1.0 / compiled.output.fps;
                 let count = (compiled.duration / interval * (1.0 + 1e-12)).floor() as u64;
-                let mut steps: Vec<u64> =
-                    (0..=count).map(|k| ((k as f64 * interval / dt).round() as u64).min(total)).collect();
-                steps.push(total);
-                steps.dedup();
+                // Frames closer than a step fall on the same step; kept once as they come, so
+                // that the list never outgrows the steps.
+                let mut steps: Vec<u64> = Vec::new();
+                for step in (0..=count).map(|k| ((k as f64 * interval / dt).round() as u64).min(total)) {
+                    if steps.last() != Some(&step) {
+                        steps.push(step);
+                    }
+                }
+                if steps.last() != Some(&total) {
+                    steps.push(total);
+                }
                 steps
             }
         };

@@ -239,3 +239,124 @@ fn one_step_is_too_few_for_a_companion_and_none_asks_for_nothing() {
         run(json!({"duration": 0.01, "dt": 0.001, "error_estimate": "none", "bodies": [small_cloth()]}));
     assert_eq!(none.stats.error, None);
 }
+
+/// A scene whose every implicit solve runs to a cap it never reaches in a test's time: a
+/// tolerance no residual meets and 2⁴⁰ iterations, far past what a scene may ask for, set on the
+/// compiled scene: the solver must stop when asked whatever its settings.
+fn endless_solve(body: Value, estimate: &str) -> Compiled {
+    let scene = json!({"duration": 1.0, "dt": 0.005, "integrator": "implicit_euler",
+        "error_estimate": estimate, "bodies": [body]});
+    let mut compiled = Scene::from_json(scene.to_string().as_bytes()).unwrap().compile();
+    compiled.config.settings.tolerance = 1e-300;
+    compiled.config.settings.max_iterations = 1 << 40;
+    compiled
+}
+
+/// Cancels `control` once the run has been inside its first step for a while, and returns how
+/// long the run took to end after the cancellation, with its recording.
+fn cancel_mid_solve(compiled: &Compiled) -> (std::time::Duration, Recording) {
+    let control = Control::new();
+    std::thread::scope(|s| {
+        let run = s.spawn(|| execute(compiled, &control));
+        // Far longer than a step of these scenes takes without the endless solve.
+        std::thread::sleep(std::time::Duration::from_millis(300));
+        assert!(!run.is_finished(), "the first solve is still running");
+        assert_eq!(control.steps_done(), 0);
+        let cancelled = Instant::now();
+        control.cancel();
+        let deadline = cancelled + std::time::Duration::from_secs(30);
+        while !run.is_finished() {
+            assert!(Instant::now() < deadline, "the run did not stop within 30 s of its cancellation");
+            std::thread::sleep(std::time::Duration::from_millis(1));
+        }
+        (cancelled.elapsed(), run.join().unwrap())
+    })
+}
+
+#[test]
+fn a_cancellation_stops_a_grid_clothes_linear_solve_part_way() {
+    let cloth = json!({"type": "cloth", "resolution": [256, 256], "pin": [[0, 0], [255, 0]]});
+    let (stopped_in, r) = cancel_mid_solve(&endless_solve(cloth, "none"));
+    assert_eq!((r.stats.status, r.stats.steps), (Status::Cancelled, 0));
+    assert_eq!(r.frames.times, [0.0], "the frame at t = 0 and no other");
+    eprintln!("stopped {stopped_in:?} after the cancellation");
+    assert!(stopped_in < std::time::Duration::from_secs(1), "stopped {stopped_in:?} after the cancellation");
+}
+
+#[test]
+fn a_cancellation_stops_a_spring_list_solve_and_the_error_estimates_companions() {
+    // Stretched to twice its rest length, so that no solve is exact after a few iterations.
+    let chain = json!({"type": "chain", "count": 20_000, "start": [0, 0, 0], "end": [10, 0, 0], "pin": [0],
+        "spring": {"k": 1000, "damping": 0.1, "rest_length": 0.00025}});
+    let (stopped_in, r) = cancel_mid_solve(&endless_solve(chain, "richardson"));
+    assert_eq!((r.stats.status, r.stats.steps), (Status::Cancelled, 0));
+    eprintln!("stopped {stopped_in:?} after the cancellation");
+    assert!(stopped_in < std::time::Duration::from_secs(1), "stopped {stopped_in:?} after the cancellation");
+}
+
+#[test]
+fn an_interrupt_that_is_never_raised_changes_no_bit() {
+    let scene = json!({"duration": 0.05, "dt": 0.005, "integrator": "implicit_euler",
+        "bodies": [{"type": "cloth", "resolution": [12, 12], "pin": [[0, 0], [11, 0]]}]});
+    let compiled = Scene::from_json(scene.to_string().as_bytes()).unwrap().compile();
+    let mut plain = Simulation::<f64>::new(&compiled.model, &compiled.config);
+    let mut watched = Simulation::<f64>::new(&compiled.model, &compiled.config);
+    watched.set_interrupt(crate::solver::Interrupt::new());
+    for _ in 0..10 {
+        plain.step().unwrap();
+        watched.step().unwrap();
+    }
+    let bits = |s: &Simulation<f64>| {
+        s.state().positions.iter().flat_map(|p| p.to_array()).map(f64::to_bits).collect::<Vec<_>>()
+    };
+    assert_eq!(bits(&plain), bits(&watched));
+    let raised = crate::solver::Interrupt::new();
+    watched.set_interrupt(raised.clone());
+    raised.raise();
+    let before = bits(&watched);
+    assert_eq!(watched.step(), Err(StepError::Interrupted));
+    assert_eq!((watched.steps_taken(), bits(&watched)), (10, before), "an interrupted step changes nothing");
+}
+
+#[test]
+fn a_run_whose_self_collision_meets_more_pairs_than_its_cap_ends_failed_with_the_reason() {
+    // 20 × 20 particles 0.053 m apart in cells of 0.2 m: thousands of candidate pairs at rest.
+    let scene = json!({"duration": 0.1, "dt": 1e-3, "error_estimate": "none",
+        "bodies": [{"type": "cloth", "resolution": [20, 20], "size": [1, 1]}],
+        "self_collision": {"thickness": 0.1}});
+    let scene = Scene::from_json(scene.to_string().as_bytes()).unwrap();
+    let mut compiled = scene.compile();
+    let met = crate::solver::candidate_pairs(&compiled.model, 0.1);
+    assert!(met > 5000, "{met} pairs");
+    compiled.config.max_self_collision_pairs = 1000;
+    for estimate in [ErrorEstimateName::None, ErrorEstimateName::Richardson] {
+        compiled.error_estimate = estimate;
+        let r = execute(&compiled, &Control::new());
+        assert_eq!(r.stats.status, Status::Failed, "{estimate:?}");
+        // The step that met them did not complete.
+        assert_eq!(r.stats.steps, 0);
+        let failure = r.stats.failure.as_deref().unwrap();
+        assert!(
+            failure.contains(&format!("met {met} candidate pairs")) && failure.contains("the 1000"),
+            "{failure}"
+        );
+        assert!(!r.has_final && r.stats.energy.is_none());
+    }
+    // With room for them, the run goes on past its first step (a thickness above the spacing
+    // throws the cloth apart, so it ends diverged).
+    compiled.config.max_self_collision_pairs = 4 * met as usize;
+    compiled.error_estimate = ErrorEstimateName::None;
+    let r = execute(&compiled, &Control::new());
+    assert!(
+        r.stats.status != Status::Failed && r.stats.steps > 1,
+        "{:?} at {}",
+        r.stats.status,
+        r.stats.steps
+    );
+}
+
+#[test]
+fn frames_finer_than_the_step_are_kept_once() {
+    let r = run(json!({"duration": 0.01, "dt": 1e-3, "bodies": [small_cloth()], "output": {"fps": 1e6}}));
+    assert_eq!(r.frames.times.len(), 11);
+}

@@ -6,16 +6,14 @@
 //!
 //! - **Alignment.** The allocator's large blocks start 16 bytes into a page, so every other
 //!   32-byte vector load of an `f32` array so placed straddles two cache lines and costs two.
-//!   Here every array starts on a cache line. On the 256² implicit cloth this made the operator's
-//!   product 20 % faster on a Zen 3 (`docs/performance.md`).
+//!   Here every array starts on a cache line.
 //! - **Sets.** Large arrays allocated one by one each get a fresh mapping and so all start at the
 //!   same offset within a page: element `p` of every array then falls at the same place in the
 //!   caches, and a pass over more arrays than a cache set has ways can evict its own lines. Here
-//!   array `k` starts `k` cache lines further round the page than array 0. In a fresh process this
-//!   made a 256² implicit step 35 % faster on a first-generation Zen.
+//!   array `k` starts `k` cache lines further round the page than array 0.
 //!
 //! Arrays shorter than a page are simply packed, each rounded up to whole cache lines. The layout
-//! changes no arithmetic, so no result.
+//! changes no arithmetic, so no result. What each part gained is in `docs/decisions.md`.
 
 use std::ops::{Index, IndexMut};
 

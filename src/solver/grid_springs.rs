@@ -123,8 +123,8 @@ const RETRY_PASSES: u32 = 256;
 const BAND_PARTICLES: usize = parallel::MIN_PARTICLES_PER_BAND;
 const BAND_SPANS: usize = 8;
 
-/// The same for a grid whose bands are optional: a band of 512 particles of a cloth's step is
-/// some 5 µs of work, several times what handing it to an awake thread costs.
+/// The same for a grid whose bands are optional: a band of 512 particles is several times the
+/// work of handing it to an awake thread.
 const OPTIONAL_BAND_PARTICLES: usize = 512;
 const OPTIONAL_BAND_SPANS: usize = 4;
 
@@ -526,7 +526,7 @@ const MAX_BANDS: usize = 64;
 /// the second ends' accumulators overlap the first ends', so their forces wait in `staged` and a
 /// second loop subtracts them (one loop updating both would not vectorise). The last, partial vector is a block padded with springs of zero
 /// force: the accumulators have room past the row, so no spring is left to a scalar remainder
-/// loop eight times slower.
+/// loop, one spring per instruction where a block takes eight.
 #[allow(clippy::too_many_arguments)]
 #[inline]
 fn spring_row<'a, T: Real>(
@@ -1006,7 +1006,7 @@ mod tests {
         assert!((fused.energy().kinetic - listed.energy().kinetic).abs() < 1e-9);
     }
 
-    /// The performance peers' hanging cloth (`/work/shared/bench/peers`): N = 32, 1 s at 1e-4 s.
+    /// The performance peers' hanging cloth (`docs/performance.md`): N = 32, 1 s at 1e-4 s.
     /// Their NumPy, Taichi, Warp, Newton and C++ versions all end with the centre particle at
     /// y = 0.53204 and particle (0, 31) at y = 0.17014 (spread 4e-7 among them, in f32).
     fn peers_cloth_after_one_second<T: Real>() -> (f64, f64) {

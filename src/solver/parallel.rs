@@ -22,8 +22,8 @@ use std::sync::OnceLock;
 use std::sync::atomic::{AtomicBool, AtomicU8, Ordering};
 use std::time::{Duration, Instant};
 
-/// The fewest particles a band is given: below about this many a band's work (some 20 µs) is not
-/// much larger than the cost of handing it to another thread.
+/// The fewest particles a band is given: below about this many a band's work is not much larger
+/// than the cost of handing it to another thread.
 pub const MIN_PARTICLES_PER_BAND: usize = 2048;
 
 /// The environment variable that sets the pool's size (a positive integer); by default the pool
@@ -55,13 +55,13 @@ pub fn install<R: Send>(work: impl FnOnce() -> R + Send) -> R {
 /// that finishes while the other runs on another thread waits for it, spinning, for at most as
 /// long as it took itself.
 ///
-/// A pass takes tens to hundreds of microseconds. A pool thread that finds no work goes to sleep
-/// after some ten microseconds, and waking it takes twenty to sixty on a virtual machine. Without
-/// the wait, the thread that finishes first falls asleep, the pass ends only once it is woken,
-/// and the next pass starts with its other thread asleep: two wake-ups a step, which cost a 128²
-/// cloth a third of its step in `f64`. A half that no other thread has taken is run by the caller
-/// after the first, as `rayon::join` does, and nothing waits for it. Only a step's passes join
-/// this way; work that runs for long (a run beside its companions) uses `rayon::join`.
+/// A pass is short, and a pool thread that finds no work soon goes to sleep; on a virtual machine
+/// waking it can take as long as the pass. Without the wait, the thread that finishes first falls
+/// asleep, the pass ends only once it is woken, and the next pass starts with its other thread
+/// asleep: two wake-ups a step, a large share of a step (`docs/decisions.md`). A half that no
+/// other thread has taken is run by the caller after the first, as `rayon::join` does, and
+/// nothing waits for it. Only a step's passes join this way; work that runs for long (a run
+/// beside its companions) uses `rayon::join`.
 pub fn join<A: Send, B: Send>(left: impl FnOnce() -> A + Send, right: impl FnOnce() -> B + Send) -> (A, B) {
     join_side_by_side(left, right).0
 }

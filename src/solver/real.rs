@@ -62,9 +62,9 @@ pub trait Real:
     ///
     /// A motion spreading into particles at exact rest (a cloth released flat) reaches them with
     /// velocities that shrink by orders of magnitude per particle. Unflushed, they run down
-    /// through the subnormal numbers, on which x86 processors take a slow path (up to three times
-    /// the step's cost on a 129 × 129 cloth in `f32` on an Intel Xeon); flushed, the
-    /// motion's front stops where it is far below anything the state can show.
+    /// through the subnormal numbers, on which x86 processors can take a slow path that comes to
+    /// dominate the step (`docs/decisions.md`); flushed, the motion's front stops where it is far
+    /// below anything the state can show.
     #[inline(always)]
     fn kept_speed(self) -> Self {
         if self.abs() < Self::SMALLEST_SPEED { Self::ZERO } else { self }

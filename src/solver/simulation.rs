@@ -14,8 +14,9 @@ use super::contacts::{Collider, Contacts};
 use super::diagnostics::{self, Energy};
 use super::dynamics::Dynamics;
 use super::integrators::{IntegratorKind, IntegratorSettings, LinearSolveStats, Stepper};
+use super::interrupt::Interrupt;
 use super::model::Model;
-use super::self_collision::SelfCollision;
+use super::self_collision::{PairCapReached, SelfCollision};
 use super::stability::{self, Divergence, DivergenceReason};
 use super::strain_limit::StrainLimit;
 use super::wind::WindConfig;
@@ -59,6 +60,9 @@ pub struct Config {
     pub strain_limit: Option<f64>,
     /// Self-collision thickness, in metres (positive): unjoined particles keep twice it apart.
     pub self_collision: Option<f64>,
+    /// The most candidate pairs self-collision may hold in one step; a step that meets more
+    /// fails with [`StepError::LimitReached`].
+    pub max_self_collision_pairs: usize,
 }
 
 impl Default for Config {
@@ -74,6 +78,32 @@ impl Default for Config {
             colliders: Vec::new(),
             strain_limit: None,
             self_collision: None,
+            max_self_collision_pairs: usize::MAX,
+        }
+    }
+}
+
+/// Why a step did not complete.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum StepError {
+    /// The state blew up.
+    #[error("the simulation diverged at step {} (t = {} s): {}", .0.step, .0.time, .0.reason)]
+    Diverged(Divergence),
+    /// The simulation's [`Interrupt`] was raised; the step was given up part-way.
+    #[error("the simulation was interrupted")]
+    Interrupted,
+    /// Self-collision met more candidate pairs than [`Config::max_self_collision_pairs`] and
+    /// left them unresolved: the state is sound, but stepping on is not meaningful.
+    #[error("{0}")]
+    LimitReached(PairCapReached),
+}
+
+impl StepError {
+    /// The divergence, if the step diverged.
+    pub fn divergence(self) -> Option<Divergence> {
+        match self {
+            Self::Diverged(d) => Some(d),
+            Self::Interrupted | Self::LimitReached(_) => None,
         }
     }
 }
@@ -95,6 +125,7 @@ pub struct Simulation<T: Real> {
     stable_dt: Option<f64>,
     runaway_limit: f64,
     stages: Vec<&'static str>,
+    interrupt: Option<Interrupt>,
 }
 
 impl<T: Real> Simulation<T> {
@@ -110,7 +141,9 @@ impl<T: Real> Simulation<T> {
             velocities: model.velocities.iter().map(|&v| Vec3::from_dvec3(v)).collect(),
         };
         let strain_limit = config.strain_limit.map(|limit| StrainLimit::new(limit, n));
-        let self_collision = config.self_collision.map(|thickness| SelfCollision::new(model, thickness));
+        let self_collision = config
+            .self_collision
+            .map(|thickness| SelfCollision::new(model, thickness, config.max_self_collision_pairs));
         let contacts = Contacts::new(&config.colliders, n);
         if let Some(contacts) = &contacts {
             contacts.project_out(&mut state.positions, &dynamics.inverse_masses);
@@ -140,16 +173,33 @@ impl<T: Real> Simulation<T> {
             steps_taken: 0,
             runaway_limit,
             stages,
+            interrupt: None,
         }
     }
 
-    /// Advances one step. On divergence the state is left as it was found, not to be used.
-    pub fn step(&mut self) -> Result<(), Divergence> {
+    /// Gives up any later step as soon as `interrupt` is raised (see [`Interrupt`]).
+    pub fn set_interrupt(&mut self, interrupt: Interrupt) {
+        self.stepper.set_interrupt(interrupt.clone());
+        self.interrupt = Some(interrupt);
+    }
+
+    fn interrupted(&self) -> bool {
+        self.interrupt.as_ref().is_some_and(Interrupt::is_raised)
+    }
+
+    /// Advances one step. After any error the state is not to be used.
+    pub fn step(&mut self) -> Result<(), StepError> {
+        if self.interrupted() {
+            return Err(StepError::Interrupted);
+        }
         if let Some(contacts) = &mut self.contacts {
             contacts.begin_step(&self.state.positions);
         }
         let t = self.time();
-        let sums = self.stepper.step(&mut self.state, &mut self.dynamics, t, self.h);
+        let sums = self
+            .stepper
+            .step(&mut self.state, &mut self.dynamics, t, self.h)
+            .map_err(|_| StepError::Interrupted)?;
         let inverse_masses = &self.dynamics.inverse_masses;
         let mut moved = false;
         if let Some(limit) = &mut self.strain_limit {
@@ -157,7 +207,12 @@ impl<T: Real> Simulation<T> {
             moved |= limit.apply(&mut self.state, &self.dynamics.springs, inverse_masses, contacts, self.h);
         }
         if let Some(self_collision) = &mut self.self_collision {
-            moved |= self_collision.resolve(&mut self.state, inverse_masses);
+            // A crumpled state can make a pass long: an interruption is not kept waiting for it.
+            if self.interrupt.as_ref().is_some_and(Interrupt::is_raised) {
+                return Err(StepError::Interrupted);
+            }
+            moved |=
+                self_collision.resolve(&mut self.state, inverse_masses).map_err(StepError::LimitReached)?;
         }
         if let Some(contacts) = &self.contacts {
             moved |= contacts.resolve(&mut self.state, inverse_masses);
@@ -170,7 +225,7 @@ impl<T: Real> Simulation<T> {
         // have changed it.
         let later_stages =
             self.strain_limit.is_some() || self.self_collision.is_some() || self.contacts.is_some();
-        self.watch(sums.filter(|_| !later_stages))
+        self.watch(sums.filter(|_| !later_stages)).map_err(StepError::Diverged)
     }
 
     /// Checks that the state is finite and its kinetic energy within the scene's means, from

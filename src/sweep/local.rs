@@ -7,10 +7,19 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use super::Sweep;
 use super::table::{Outcome, Table, compile_for_table};
 use crate::run::{Control, Recording, execute};
-use crate::scene::Scene;
+use crate::scene::{Compiled, Scene};
 
 /// Runs the reference and every variant, `threads` at a time (at least one), and makes the table.
 pub fn run_locally(sweep: &Sweep, threads: usize) -> Table {
+    run_locally_with(sweep, threads, &|scene| Ok(compile_for_table(scene)))
+}
+
+/// [`run_locally`], each scene compiled by `compile` (which may refuse it, in words).
+pub fn run_locally_with(
+    sweep: &Sweep,
+    threads: usize,
+    compile: &(dyn Fn(&Scene) -> Result<Compiled, String> + Sync),
+) -> Table {
     let scenes: Vec<&Scene> = sweep.reference.iter().chain(sweep.variants.iter().map(|v| &v.scene)).collect();
     let results: Vec<Mutex<Option<Result<Recording, String>>>> =
         scenes.iter().map(|_| Mutex::new(None)).collect();
@@ -22,7 +31,7 @@ pub fn run_locally(sweep: &Sweep, threads: usize) -> Table {
                     let index = next.fetch_add(1, Ordering::Relaxed);
                     let Some(scene) = scenes.get(index) else { break };
                     let outcome = catch_unwind(AssertUnwindSafe(|| {
-                        execute(&compile_for_table(scene), &Control::new())
+                        compile(scene).map(|compiled| execute(&compiled, &Control::new()))
                     }))
                     .map_err(|panic| {
                         let message = panic
@@ -31,7 +40,8 @@ pub fn run_locally(sweep: &Sweep, threads: usize) -> Table {
                             .or_else(|| panic.downcast_ref::<String>().cloned())
                             .unwrap_or_else(|| "unknown".into());
                         format!("the run failed: {message}")
-                    });
+                    })
+                    .and_then(|compiled| compiled);
                     *results[index].lock().unwrap_or_else(|e| e.into_inner()) = Some(outcome);
                 }
             });

@@ -17,7 +17,7 @@ mod table;
 use serde_json::Value;
 use thiserror::Error;
 
-pub use local::run_locally;
+pub use local::{run_locally, run_locally_with};
 pub use plot::write_svg;
 pub use table::{Convergence, Outcome, Row, Table, compile_for_table, final_positions, write_csv};
 

@@ -62,6 +62,7 @@ impl Row {
         let detail = match (&stats.diverged, stats.status) {
             (Some(d), _) => Some(format!("diverged at step {} (t = {} s): {}", d.step, d.t, d.reason)),
             (None, Status::Cancelled) => Some("cancelled".into()),
+            (None, Status::Failed) => stats.failure.clone(),
             _ => None,
         };
         Self {

@@ -10,9 +10,13 @@ mod rk4;
 mod verlet;
 
 use super::dynamics::Dynamics;
-use super::{Real, State};
+use super::{Interrupt, Real, State};
 
 pub use implicit::LinearSolveStats;
+
+/// A step given up part-way because its [`Interrupt`] was raised.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct Interrupted;
 
 /// The integration methods a scene can choose.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -110,16 +114,31 @@ impl<T: Real> Stepper<T> {
 
     /// Advances `state` by one step of `h` seconds from time `t`. When the step could also sum
     /// what the stability watch needs over the new state, it returns those sums (`Σ m |v|²` and
-    /// the sum of every position component, in particle order).
-    pub fn step(&mut self, state: &mut State<T>, dynamics: &mut Dynamics<T>, t: f64, h: T) -> Option<(T, T)> {
+    /// the sum of every position component, in particle order). An implicit step whose solve
+    /// was interrupted leaves the state as it was.
+    pub fn step(
+        &mut self,
+        state: &mut State<T>,
+        dynamics: &mut Dynamics<T>,
+        t: f64,
+        h: T,
+    ) -> Result<Option<(T, T)>, Interrupted> {
         match self {
             Self::ExplicitEuler(e) => e.explicit_step(state, dynamics, t, h),
-            Self::SymplecticEuler(e) => return e.symplectic_step(state, dynamics, t, h),
+            Self::SymplecticEuler(e) => return Ok(e.symplectic_step(state, dynamics, t, h)),
             Self::Verlet(v) => v.step(state, dynamics, t, h),
             Self::Rk4(r) => r.step(state, dynamics, t, h),
-            Self::ImplicitEuler(i) => i.step(state, dynamics, t, h),
+            Self::ImplicitEuler(i) => i.step(state, dynamics, t, h)?,
         }
-        None
+        Ok(None)
+    }
+
+    /// Hands the integrators that loop within a step (the implicit solves) a flag that stops
+    /// them part-way.
+    pub fn set_interrupt(&mut self, interrupt: Interrupt) {
+        if let Self::ImplicitEuler(i) = self {
+            i.set_interrupt(interrupt);
+        }
     }
 
     /// Tells the integrator that something outside it (a constraint, a contact) changed the

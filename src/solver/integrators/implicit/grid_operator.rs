@@ -76,9 +76,8 @@ pub(crate) struct GridOperator<T> {
 const JACOBI_DAMPING: f64 = 0.9;
 
 /// Grids (and multigrid levels) with at least this many particles split their work over the
-/// pool's threads. On a Zen 3 the 64² cloth (4,096 particles) ran 2 to 8 % faster a step split
-/// than on one thread, and 15 % faster to rest at 1/120 s; on a first-generation Zen it ran 4 to
-/// 9 % slower. The next size down, 32², is a quarter of the work.
+/// pool's threads: a 64² cloth (4,096 particles) has enough work in each pass to gain from the
+/// split, and the next size down, 32², is a quarter of it (`docs/decisions.md`).
 const PARALLEL_PARTICLES: usize = 4_096;
 
 /// Below this squared length a spring has no direction and contributes nothing.

@@ -18,8 +18,10 @@ use std::any::{Any, TypeId};
 
 use rayon::prelude::*;
 
+use super::super::super::Interrupt;
 use super::super::super::Real;
 use super::super::super::dynamics::Dynamics;
+use super::super::Interrupted;
 use super::grid_operator::{Family, Field, GridOperator, RightHandSide, zero_field};
 use super::multigrid::Multigrid;
 use super::{SolveOutcome, StepInput, dot_slices};
@@ -141,20 +143,22 @@ impl<T: Real> GridSolver<T> {
         self.multigrid.depth()
     }
 
-    /// Solves the step's system; `Δv` is then [`delta_v`](Self::delta_v).
+    /// Solves the step's system; `Δv` is then [`delta_v`](Self::delta_v). Gives up, leaving
+    /// `Δv` part-way, as soon as `interrupt` is raised.
     pub fn solve(
         &mut self,
         input: &StepInput<'_, T>,
         tolerance: T,
         max_iterations: usize,
-    ) -> SolveOutcome<T> {
+        interrupt: Option<&Interrupt>,
+    ) -> Result<SolveOutcome<T>, Interrupted> {
         if self.multigrid.fine().is_parallel() {
             // The whole solve runs on one worker of the pool, so that the parallel products in
             // it share work through the workers' own queues: each entry into the pool from
             // outside goes through its shared queue, which allocates a block every 63 entries.
-            rayon::scope(|_| self.solve_here(input, tolerance, max_iterations))
+            rayon::scope(|_| self.solve_here(input, tolerance, max_iterations, interrupt))
         } else {
-            self.solve_here(input, tolerance, max_iterations)
+            self.solve_here(input, tolerance, max_iterations, interrupt)
         }
     }
 
@@ -163,7 +167,8 @@ impl<T: Real> GridSolver<T> {
         input: &StepInput<'_, T>,
         tolerance: T,
         max_iterations: usize,
-    ) -> SolveOutcome<T> {
+        interrupt: Option<&Interrupt>,
+    ) -> Result<SolveOutcome<T>, Interrupted> {
         let h = input.h;
         for (rhs, force) in self.rhs.iter_mut().zip(input.forces) {
             for (r, &f) in rhs.iter_mut().zip(force) {
@@ -184,7 +189,7 @@ impl<T: Real> GridSolver<T> {
         self.multigrid.assemble(self.system.as_ref(), input.positions, round(h), round(input.drag));
         zero_pinned(&mut self.rhs, &self.pinned);
         zero_pinned(&mut self.delta_v, &self.pinned);
-        self.conjugate_gradients(tolerance, max_iterations)
+        self.conjugate_gradients(tolerance, max_iterations, interrupt)
     }
 
     /// The last solution.
@@ -192,7 +197,12 @@ impl<T: Real> GridSolver<T> {
         &self.delta_v
     }
 
-    fn conjugate_gradients(&mut self, tolerance: T, max_iterations: usize) -> SolveOutcome<T> {
+    fn conjugate_gradients(
+        &mut self,
+        tolerance: T,
+        max_iterations: usize,
+        interrupt: Option<&Interrupt>,
+    ) -> Result<SolveOutcome<T>, Interrupted> {
         let parallel = self.multigrid.fine().is_parallel();
         let pieces = &mut self.pieces;
         let rhs_norm = dot_pieces(&self.rhs, &self.rhs, pieces, parallel).sqrt();
@@ -200,7 +210,7 @@ impl<T: Real> GridSolver<T> {
             for axis in &mut self.delta_v {
                 axis.fill(T::ZERO);
             }
-            return SolveOutcome { iterations: 0, relative_residual: T::ZERO };
+            return Ok(SolveOutcome { iterations: 0, relative_residual: T::ZERO });
         }
         // r = b - A x0 from the previous step's solution.
         system(&self.system, &self.multigrid).residual(&self.rhs, &self.delta_v, &mut self.residual);
@@ -209,6 +219,9 @@ impl<T: Real> GridSolver<T> {
         let mut iterations = 0;
         let mut rz = 0.0;
         while residual_norm > target && iterations < max_iterations {
+            if interrupt.is_some_and(Interrupt::is_raised) {
+                return Err(Interrupted);
+            }
             self.multigrid.precondition(&mut self.residual, &mut self.preconditioned);
             let rz_next = dot_pieces(&self.residual, &self.preconditioned, pieces, parallel);
             // s = z on the first iteration, z + β s after.
@@ -264,7 +277,7 @@ impl<T: Real> GridSolver<T> {
             residual_norm = pieces.iter().sum::<f64>().sqrt();
             iterations += 1;
         }
-        SolveOutcome { iterations, relative_residual: T::from_f64(residual_norm / rhs_norm) }
+        Ok(SolveOutcome { iterations, relative_residual: T::from_f64(residual_norm / rhs_norm) })
     }
 }
 

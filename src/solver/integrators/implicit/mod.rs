@@ -30,9 +30,10 @@ mod spring_list;
 #[cfg(test)]
 mod tests;
 
+use super::super::Interrupt;
 use super::super::dynamics::Dynamics;
 use super::super::{Real, State, Vectors};
-use super::IntegratorSettings;
+use super::{IntegratorSettings, Interrupted};
 use grid_operator::{Field, zero_field};
 use grid_solver::GridSolver;
 use spring_list::SpringListSolver;
@@ -91,6 +92,8 @@ pub(crate) struct Implicit<T> {
     delta_v: Field<T>,
     tolerance: T,
     stats: LinearSolveStats,
+    /// Raised from another thread to give up a solve part-way.
+    interrupt: Option<Interrupt>,
 }
 
 impl<T: Real> Implicit<T> {
@@ -123,14 +126,27 @@ impl<T: Real> Implicit<T> {
                 max_iterations: settings.max_iterations,
                 ..LinearSolveStats::default()
             },
+            interrupt: None,
         }
+    }
+
+    /// Gives up any later solve as soon as `interrupt` is raised.
+    pub fn set_interrupt(&mut self, interrupt: Interrupt) {
+        self.interrupt = Some(interrupt);
     }
 
     pub fn stats(&self) -> LinearSolveStats {
         self.stats
     }
 
-    pub fn step(&mut self, state: &mut State<T>, dynamics: &mut Dynamics<T>, t: f64, h: T) {
+    /// One step; when interrupted, the state is left as it was.
+    pub fn step(
+        &mut self,
+        state: &mut State<T>,
+        dynamics: &mut Dynamics<T>,
+        t: f64,
+        h: T,
+    ) -> Result<(), Interrupted> {
         // The one place that reads the state and evaluates the forces.
         dynamics.forces(&state.positions, &state.velocities, t, &mut self.particle_forces);
         let copies = [
@@ -152,10 +168,13 @@ impl<T: Real> Implicit<T> {
             drag: dynamics.drag.unwrap_or(T::ZERO),
         };
         let max_iterations = self.stats.max_iterations;
+        let interrupt = self.interrupt.as_ref();
         let (outcome, delta_v) = match &mut self.solver {
-            Solver::Grid(grid) => (grid.solve(&input, self.tolerance, max_iterations), grid.delta_v()),
+            Solver::Grid(grid) => {
+                (grid.solve(&input, self.tolerance, max_iterations, interrupt)?, grid.delta_v())
+            }
             Solver::SpringList(list) => (
-                list.solve(&input, dynamics, self.tolerance, max_iterations, &mut self.delta_v),
+                list.solve(&input, dynamics, self.tolerance, max_iterations, interrupt, &mut self.delta_v)?,
                 &self.delta_v,
             ),
         };
@@ -169,6 +188,7 @@ impl<T: Real> Implicit<T> {
                 *x += *v * h;
             }
         }
+        Ok(())
     }
 }
 

@@ -6,10 +6,12 @@
 //! `A x = M x + Σ_s ±S (x_i - x_j)` streams through the spring list; the preconditioner is the
 //! inverse of each particle's diagonal block.
 
+use super::super::super::Interrupt;
 use super::super::super::dynamics::Dynamics;
 use super::super::super::springs::{direction, stiffness_block};
 use super::super::super::sym3::Sym3;
 use super::super::super::{Real, Vec3};
+use super::super::Interrupted;
 use super::grid_operator::Field;
 use super::{SolveOutcome, StepInput};
 
@@ -56,21 +58,23 @@ impl<T: Real> SpringListSolver<T> {
         }
     }
 
-    /// Solves the step's system and writes `Δv` into `delta_v`.
+    /// Solves the step's system and writes `Δv` into `delta_v`; gives up, writing nothing, as
+    /// soon as `interrupt` is raised.
     pub fn solve(
         &mut self,
         input: &StepInput<'_, T>,
         dynamics: &Dynamics<T>,
         tolerance: T,
         max_iterations: usize,
+        interrupt: Option<&Interrupt>,
         delta_v: &mut Field<T>,
-    ) -> SolveOutcome<T> {
+    ) -> Result<SolveOutcome<T>, Interrupted> {
         self.assemble(input, dynamics);
-        let outcome = self.conjugate_gradients(dynamics, tolerance, max_iterations);
+        let outcome = self.conjugate_gradients(dynamics, tolerance, max_iterations, interrupt)?;
         for (p, dv) in self.delta_v.iter().enumerate() {
             (delta_v[0][p], delta_v[1][p], delta_v[2][p]) = (dv.x, dv.y, dv.z);
         }
-        outcome
+        Ok(outcome)
     }
 
     /// Builds the spring blocks, the preconditioner and the right-hand side
@@ -133,11 +137,12 @@ impl<T: Real> SpringListSolver<T> {
         dynamics: &Dynamics<T>,
         tolerance: T,
         max_iterations: usize,
-    ) -> SolveOutcome<T> {
+        interrupt: Option<&Interrupt>,
+    ) -> Result<SolveOutcome<T>, Interrupted> {
         let rhs_norm = dot(&self.rhs, &self.rhs).sqrt();
         if rhs_norm == T::ZERO {
             self.delta_v.fill(Vec3::ZERO);
-            return SolveOutcome { iterations: 0, relative_residual: T::ZERO };
+            return Ok(SolveOutcome { iterations: 0, relative_residual: T::ZERO });
         }
         // r = b - A x0.
         self.search.copy_from_slice(&self.delta_v);
@@ -152,6 +157,9 @@ impl<T: Real> SpringListSolver<T> {
         let mut iterations = 0;
         let mut residual_norm = dot(&self.residual, &self.residual).sqrt();
         while residual_norm > target && iterations < max_iterations {
+            if interrupt.is_some_and(Interrupt::is_raised) {
+                return Err(Interrupted);
+            }
             self.apply_system(dynamics);
             let curvature = dot(&self.search, &self.product);
             if curvature <= T::ZERO || !curvature.is_finite() {
@@ -172,7 +180,7 @@ impl<T: Real> SpringListSolver<T> {
             residual_norm = dot(&self.residual, &self.residual).sqrt();
             iterations += 1;
         }
-        SolveOutcome { iterations, relative_residual: residual_norm / rhs_norm }
+        Ok(SolveOutcome { iterations, relative_residual: residual_norm / rhs_norm })
     }
 
     fn precondition(&mut self) {

@@ -63,7 +63,7 @@ fn multigrid_solves_reach_the_tolerance_in_a_fraction_of_block_jacobis_iteration
     let mut checker = SpringListSolver::new(&dynamics);
     let steps = 30;
     for _ in 0..steps {
-        grid.step(&mut grid_state, &mut dynamics, 0.0, H);
+        grid.step(&mut grid_state, &mut dynamics, 0.0, H).expect("nothing interrupts it");
         let Solver::Grid(solver) = &grid.solver else { unreachable!() };
         // The step wrote the state; rebuild its input from the copies it took at its start.
         let input = StepInput {
@@ -75,7 +75,7 @@ fn multigrid_solves_reach_the_tolerance_in_a_fraction_of_block_jacobis_iteration
         };
         let residual = checker.relative_residual_of(&input, &dynamics, solver.delta_v());
         assert!(residual <= 1.01e-6, "recomputed relative residual {residual}");
-        list.step(&mut list_state, &mut dynamics, 0.0, H);
+        list.step(&mut list_state, &mut dynamics, 0.0, H).expect("nothing interrupts it");
     }
     let (g, l) = (grid.stats(), list.stats());
     assert_eq!(g.unconverged_solves, 0);
@@ -97,13 +97,13 @@ fn multigrid_and_block_jacobi_agree_on_the_step() {
     let (mut state, mut dynamics) = start::<f64>(&model, drag);
     let mut warm = Implicit::new(&dynamics, settings(1e-6, 200));
     for _ in 0..40 {
-        warm.step(&mut state, &mut dynamics, 0.0, H);
+        warm.step(&mut state, &mut dynamics, 0.0, H).expect("nothing interrupts it");
     }
     let mut grid = Implicit::new(&dynamics, settings(1e-9, 200));
     let mut list = Implicit::with_spring_list(&dynamics, settings(1e-12, 100_000));
     let (mut a, mut b) = (state.clone(), state.clone());
-    grid.step(&mut a, &mut dynamics, 0.0, H);
-    list.step(&mut b, &mut dynamics, 0.0, H);
+    grid.step(&mut a, &mut dynamics, 0.0, H).expect("nothing interrupts it");
+    list.step(&mut b, &mut dynamics, 0.0, H).expect("nothing interrupts it");
     assert_eq!(list.stats().unconverged_solves, 0);
     let largest = state
         .velocities
@@ -131,8 +131,8 @@ fn an_f64_solve_preconditioned_in_f32_reaches_a_tolerance_far_below_f32s_precisi
         (Implicit::new(&dynamics, settings(1e-6, 200)), Implicit::new(&dynamics, settings(1e-11, 200)));
     let mut other = state.clone();
     for _ in 0..10 {
-        loose.step(&mut state, &mut dynamics, 0.0, H);
-        tight.step(&mut other, &mut dynamics, 0.0, H);
+        loose.step(&mut state, &mut dynamics, 0.0, H).expect("nothing interrupts it");
+        tight.step(&mut other, &mut dynamics, 0.0, H).expect("nothing interrupts it");
     }
     let (loose, tight) = (loose.stats(), tight.stats());
     assert_eq!(tight.unconverged_solves, 0);
@@ -153,7 +153,7 @@ fn the_grid_solve_gives_the_same_bits_on_any_number_of_threads() {
         let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
         pool.install(|| {
             for _ in 0..3 {
-                implicit.step(&mut state, &mut dynamics, 0.0, T::from_f64(H));
+                implicit.step(&mut state, &mut dynamics, 0.0, T::from_f64(H)).expect("nothing interrupts it");
             }
         });
         let positions = state.positions.axes().iter().flat_map(|axis| axis.iter().copied()).collect();
