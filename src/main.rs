@@ -6,10 +6,12 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
+use drape::config::LimitArgs;
+use drape::jobs::{admit_for_table, sweep_over_limit};
 use drape::output::{Format, encode};
-use drape::run::{Control, execute};
+use drape::run::{Control, Status, execute};
 use drape::scene::Scene;
-use drape::sweep::{Sweep, run_locally, write_csv, write_svg};
+use drape::sweep::{Sweep, run_locally_with, write_csv, write_svg};
 
 /// Cloth and mass-spring simulation.
 #[derive(Parser)]
@@ -34,6 +36,10 @@ enum Command {
         /// `output.format`). npy becomes npz when the scene asks for more than positions.
         #[arg(short, long)]
         format: Option<Format>,
+        /// The limits the run must fit (as `drape serve` applies them; the memory budget is the
+        /// run's alone).
+        #[command(flatten)]
+        limits: LimitArgs,
     },
     /// Runs every variant of a sweep and prints its table (JSON, or CSV with --csv).
     Sweep {
@@ -51,17 +57,21 @@ enum Command {
         /// Refuse sweeps with more variants than this.
         #[arg(long, default_value_t = 1000)]
         max_variants: u64,
+        /// The limits every run must fit (as `drape serve` applies them; the memory budget is
+        /// shared by the runs at once).
+        #[command(flatten)]
+        limits: LimitArgs,
     },
 }
 
 fn main() -> ExitCode {
     match Cli::parse().command {
         Command::Serve(config) => serve(*config),
-        Command::Run { scene, output, format } => run(&scene, output.as_deref(), format),
-        Command::Sweep { sweep, csv, plot, threads, max_variants } => {
+        Command::Run { scene, output, format, limits } => run(&scene, output.as_deref(), format, &limits),
+        Command::Sweep { sweep, csv, plot, threads, max_variants, limits } => {
             let threads =
                 threads.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
-            run_sweep(&sweep, csv, plot.as_deref(), threads, max_variants)
+            run_sweep(&sweep, SweepOptions { csv, plot: plot.as_deref(), threads, max_variants }, &limits)
         }
     }
 }
@@ -106,7 +116,16 @@ fn read_input(path: &Path) -> Result<Vec<u8>, ExitCode> {
     })
 }
 
-fn run_sweep(path: &Path, csv: bool, plot: Option<&Path>, threads: usize, max_variants: u64) -> ExitCode {
+/// How `drape sweep` runs and prints.
+struct SweepOptions<'a> {
+    csv: bool,
+    plot: Option<&'a Path>,
+    threads: usize,
+    max_variants: u64,
+}
+
+fn run_sweep(path: &Path, options: SweepOptions<'_>, limits: &LimitArgs) -> ExitCode {
+    let SweepOptions { csv, plot, threads, max_variants } = options;
     let text = match read_input(path) {
         Ok(text) => text,
         Err(code) => return code,
@@ -122,7 +141,22 @@ fn run_sweep(path: &Path, csv: bool, plot: Option<&Path>, threads: usize, max_va
             return ExitCode::from(2);
         }
     };
-    let table = run_locally(&sweep, threads);
+    let runs_at_once = threads.max(1).min(sweep.variants.len() + usize::from(sweep.reference.is_some()));
+    let limits = limits.limits(runs_at_once);
+    let document: serde_json::Value = serde_json::from_slice(&text).unwrap_or_default();
+    let problems = sweep_over_limit(&document, &sweep, &limits);
+    if !problems.is_empty() {
+        eprintln!("drape: {} exceeds the limits (the flags named lift them):", path.display());
+        problems.iter().for_each(|fe| eprintln!("  {fe}"));
+        return ExitCode::from(2);
+    }
+    let compile = |scene: &Scene| {
+        admit_for_table(scene, &limits).map_err(|errors| {
+            let reasons: Vec<String> = errors.iter().map(ToString::to_string).collect();
+            format!("the run exceeds the limits: {}", reasons.join("; "))
+        })
+    };
+    let table = run_locally_with(&sweep, threads, &compile);
     let mut out = std::io::BufWriter::new(std::io::stdout().lock());
     let printed = if csv {
         write_csv(&table, &mut out)
@@ -146,7 +180,7 @@ fn run_sweep(path: &Path, csv: bool, plot: Option<&Path>, threads: usize, max_va
     }
 }
 
-fn run(path: &Path, output: Option<&Path>, format: Option<Format>) -> ExitCode {
+fn run(path: &Path, output: Option<&Path>, format: Option<Format>, limits: &LimitArgs) -> ExitCode {
     let text = match read_input(path) {
         Ok(text) => text,
         Err(code) => return code,
@@ -169,7 +203,20 @@ fn run(path: &Path, output: Option<&Path>, format: Option<Format>) -> ExitCode {
         return ExitCode::from(2);
     }
     let format = format.for_fields(&scene.output.fields);
-    let recording = execute(&scene.compile(), &Control::new());
+    let compiled = match limits.limits(1).admit(&scene) {
+        Ok(admitted) => admitted.compiled,
+        Err(errors) => {
+            eprintln!("drape: {} exceeds the limits (the flags named lift them):", path.display());
+            errors.iter().for_each(|fe| eprintln!("  {fe}"));
+            return ExitCode::from(2);
+        }
+    };
+    let recording = execute(&compiled, &Control::new());
+    if recording.stats.status == Status::Failed {
+        let reason = recording.stats.failure.as_deref().unwrap_or("a stage met more than the run may hold");
+        eprintln!("drape: the run of {} failed: {reason}", path.display());
+        return ExitCode::FAILURE;
+    }
     let written = match output {
         Some(file) => std::fs::File::create(file)
             .map(std::io::BufWriter::new)

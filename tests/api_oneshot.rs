@@ -61,15 +61,18 @@ async fn a_diverged_run_is_a_successful_answer_about_the_scene() {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn simulate_refuses_runs_over_its_budget_and_points_to_jobs() {
-    let api = ApiConfig { simulate_work_budget: 44, ..ApiConfig::default() };
+    let api = ApiConfig { simulate_work_budget: 74, ..ApiConfig::default() };
     let (_, app) = test_app(jobs_config(), api);
-    // TINY is 3 particles × (10 steps + 5 of its error estimate's companion) = 45 particle-steps.
+    // TINY is 3 particles and 2 springs × (10 steps + 5 of its error estimate's companion) = 75
+    // element-steps, 50 of them the bodies' own.
     let answer = post_json(&app, "/simulate", TINY).await;
     assert_eq!(answer.status, 413);
     let problem = answer.problem();
     assert_eq!(problem["type"], "/problems/over-simulate-budget");
     let detail = problem["detail"].as_str().unwrap();
-    assert!(detail.contains("45 particle-steps") && detail.contains("POST /jobs"), "{detail}");
+    assert!(detail.contains("75 element-steps") && detail.contains("POST /jobs"), "{detail}");
+    assert_eq!(problem["errors"][0]["pointer"], "/bodies/0/count");
+    assert_eq!(problem["errors"][0]["detail"], "bodies costs 50 of the run's 75 element-steps");
     // The same scene is welcome as a job.
     assert_eq!(post_json(&app, "/jobs", TINY).await.status, 202);
 }
@@ -455,4 +458,91 @@ async fn a_json_result_is_served_in_any_format_that_can_carry_it() {
     let problem = obj.problem();
     assert_eq!(problem["type"], "/problems/format-cannot-carry");
     assert_eq!(problem["errors"][0]["pointer"], "/output/fields/1");
+}
+
+/// The 629-byte scene of the issue: every pair of a 300² cloth's particles a self-collision
+/// candidate.
+const THICK_CLOTH: &str = r#"{"duration":0.01,"dt":0.005,"integrator":"symplectic_euler","error_estimate":"none","self_collision":{"thickness":10},"bodies":[{"type":"cloth","resolution":[300,300],"size":[1,1]}],"output":{"frames":"final"}}"#;
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn every_cost_is_refused_before_work_starts_at_the_field_that_makes_it() {
+    let (jobs, app) = test_app(jobs_config(), ApiConfig::default());
+    let chain = r#""bodies": [{"type": "chain"}]"#;
+    let cases = [
+        (THICK_CLOTH.to_string(), "/self_collision/thickness"),
+        (format!(r#"{{"duration": 1, "output": {{"fps": 1e9}}, {chain}}}"#), "/output/fps"),
+        (format!(r#"{{"duration": 1e9, {chain}}}"#), "/duration"),
+        (format!(r#"{{"duration": 1, "dt": 1e-12, {chain}}}"#), "/dt"),
+        (
+            r#"{"duration": 1, "bodies": [{"type": "cloth", "resolution": [100000, 100000]}]}"#.into(),
+            "/bodies/0/resolution",
+        ),
+        (format!(r#"{{"duration": 1, "solver": {{"tolerance": 1}}, {chain}}}"#), "/solver/tolerance"),
+        (
+            format!(r#"{{"duration": 1, "solver": {{"max_iterations": 100000}}, {chain}}}"#),
+            "/solver/max_iterations",
+        ),
+    ];
+    for (scene, pointer) in &cases {
+        for path in ["/jobs", "/simulate"] {
+            let answer = post_json(&app, path, scene).await;
+            assert_eq!(answer.status, 422, "{path} {scene}: {}", answer.text());
+            let problem = answer.problem();
+            assert_eq!(problem["errors"][0]["pointer"], *pointer, "{path} {scene}: {problem}");
+        }
+    }
+    let page = drape::jobs::Page { offset: 0, limit: 100 };
+    assert!(jobs.list(page).await.unwrap().is_empty(), "nothing was queued");
+
+    // 10,000 spheres over a small cloth: 0.3 % of the old particle-step budget, but 10,000
+    // collider tests per particle and step.
+    let spheres: Vec<String> = (0..10_000)
+        .map(|i| format!(r#"{{"type":"sphere","center":[{},-5,0],"radius":0.01}}"#, i as f64 * 1e-3))
+        .collect();
+    let scene = format!(
+        r#"{{"duration":0.15,"dt":0.001,"bodies":[{{"type":"cloth","resolution":[32,32]}}],"colliders":[{}]}}"#,
+        spheres.join(",")
+    );
+    let answer = post_json(&app, "/simulate", &scene).await;
+    assert_eq!(answer.status, 413, "{}", answer.text());
+    let problem = answer.problem();
+    assert_eq!(problem["errors"][0]["pointer"], "/colliders");
+    // 1024 particles × 10,000 colliders × (150 steps + 75 of the companion).
+    assert!(problem["detail"].as_str().unwrap().contains("POST /jobs"), "{problem}");
+    assert_eq!(
+        problem["errors"][0]["detail"].as_str().unwrap().split(' ').nth(2),
+        Some((1024u64 * 10_000 * 150).to_string().as_str())
+    );
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_run_whose_self_collision_outgrows_its_memory_fails_at_the_thickness() {
+    // Two cloths 0.5 m apart, one falling onto the other at 5 m/s: their particles, each in a
+    // cell of its own layer, meet the other layer's when they touch.
+    let scene = r#"{"duration": 0.2, "dt": 2e-4, "gravity": [0, 0, 0], "error_estimate": "none",
+        "bodies": [{"type": "cloth", "resolution": [10, 10], "center": [0, 0.5, 0], "velocity": [0, -5, 0]},
+                   {"type": "cloth", "resolution": [10, 10], "center": [0, 0, 0]}],
+        "self_collision": {"thickness": 0.06}, "output": {"frames": "final"}}"#;
+    // A job allowance of exactly the estimate leaves no room beyond the pairs at rest.
+    let parsed = drape::scene::Scene::from_json(scene.as_bytes()).unwrap();
+    let admitted = drape::jobs::Limits::default().admit(&parsed).unwrap();
+    let (pairs, memory) = (admitted.cost.pairs, admitted.cost.memory());
+    assert!(pairs > 200, "{pairs} pairs at rest");
+    assert_eq!(
+        admitted.compiled.config.max_self_collision_pairs as u64,
+        pairs + (drape::jobs::Limits::default().max_memory - memory) / 8
+    );
+    let limits = drape::jobs::Limits { max_memory: memory, ..drape::jobs::Limits::default() };
+    let (_, app) = test_app(JobsConfig { limits, ..jobs_config() }, ApiConfig::default());
+
+    let answer = post_json(&app, "/simulate", scene).await;
+    assert_eq!(answer.status, 422, "{}", answer.text());
+    let problem = answer.problem();
+    assert_eq!(problem["errors"][0]["pointer"], "/self_collision/thickness");
+    let detail = problem["errors"][0]["detail"].as_str().unwrap();
+    assert!(detail.contains(&format!("more than the {pairs} this run may hold")), "{detail}");
+    let id = detail.strip_prefix("job ").and_then(|rest| rest.split(' ').next()).unwrap();
+    let job = get(&app, &format!("/jobs/{id}")).await.json();
+    assert_eq!((job["status"].as_str(), job["failure"].as_str()), (Some("failed"), Some("limit")), "{job}");
+    assert_eq!(get(&app, &format!("/jobs/{id}/result")).await.status, 409);
 }

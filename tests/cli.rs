@@ -5,14 +5,21 @@ use std::io::Write;
 use std::process::{Command, Output, Stdio};
 
 fn drape_run(scene: &str) -> Output {
+    drape(&["run", "-"], scene)
+}
+
+/// `drape` with `args`, `input` on its standard input.
+fn drape(args: &[&str], input: &str) -> Output {
     let mut child = Command::new(env!("CARGO_BIN_EXE_drape"))
-        .args(["run", "-"])
+        .args(args)
+        .env_remove("DRAPE_MEMORY_BUDGET")
+        .env_remove("DRAPE_MAX_STEPS")
         .stdin(Stdio::piped())
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()
         .unwrap();
-    child.stdin.take().unwrap().write_all(scene.as_bytes()).unwrap();
+    child.stdin.take().unwrap().write_all(input.as_bytes()).unwrap();
     child.wait_with_output().unwrap()
 }
 
@@ -68,4 +75,103 @@ fn malformed_json_exits_with_its_position() {
     let out = drape_run("{\"duration\": ");
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8(out.stderr).unwrap().contains("line 1"));
+}
+
+/// The 629-byte scene of the issue: every pair of a 300² cloth's particles a self-collision
+/// candidate, 30 GiB of pairs.
+const THICK_CLOTH: &str = r#"{"duration":0.01,"dt":0.005,"integrator":"symplectic_euler","error_estimate":"none","self_collision":{"thickness":10},"bodies":[{"type":"cloth","resolution":[300,300],"size":[1,1]}],"output":{"frames":"final"}}"#;
+
+#[test]
+fn drape_run_refuses_what_the_server_refuses_naming_the_field() {
+    let chain = r#""bodies": [{"type": "chain"}]"#;
+    for (scene, pointer) in [
+        (THICK_CLOTH.to_string(), "/self_collision/thickness: "),
+        (format!(r#"{{"duration": 1e9, {chain}}}"#), "/duration: "),
+        (format!(r#"{{"duration": 1, "dt": 1e-12, {chain}}}"#), "/dt: "),
+        (format!(r#"{{"duration": 1, "output": {{"fps": 1e9}}, {chain}}}"#), "/output/fps: "),
+        (
+            r#"{"duration": 1, "bodies": [{"type": "cloth", "resolution": [100000, 100000]}]}"#.into(),
+            "/bodies/0/resolution: ",
+        ),
+    ] {
+        let out = drape_run(&scene);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{scene}: {stderr}");
+        assert!(out.stdout.is_empty());
+        assert!(stderr.lines().any(|l| l.trim_start().starts_with(pointer)), "{scene}: {stderr}");
+    }
+}
+
+#[test]
+fn a_flag_or_a_variable_lifts_a_limit() {
+    let scene = r#"{"duration": 1, "dt": 1e-4, "error_estimate": "none", "bodies": [{"type": "chain", "count": 2}],
+                    "output": {"frames": "final"}}"#;
+    let tight = drape(&["run", "--max-steps", "9999", "-"], scene);
+    assert_eq!(tight.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&tight.stderr).contains("/dt: the run needs 10000 steps"));
+    assert!(drape(&["run", "--max-steps", "10000", "-"], scene).status.success());
+
+    // 2 particles, 1 spring, 10,000 steps: 30,000 element-steps.
+    let out = drape(&["run", "--max-work", "29999", "-"], scene);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--max-work"));
+    // The variable sets the limit when no flag is given; a flag given wins over it.
+    let with_variable = |args: &[&str], work: &str| {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_drape"))
+            .args(args)
+            .env("DRAPE_MAX_WORK", work)
+            .stdin(Stdio::piped())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        child.stdin.take().unwrap().write_all(scene.as_bytes()).unwrap();
+        child.wait_with_output().unwrap().status.code()
+    };
+    assert_eq!(with_variable(&["run", "-"], "29999"), Some(2));
+    assert_eq!(with_variable(&["run", "-"], "30000"), Some(0));
+    assert_eq!(with_variable(&["run", "--max-work", "30000", "-"], "1"), Some(0));
+
+    // The memory budget: the thin cloth's pairs take about half a gigabyte.
+    let thin = THICK_CLOTH.replace(r#""thickness":10"#, r#""thickness":0.02"#).replace("0.01", "0.005");
+    let out = drape(&["run", "--memory-budget", "256M", "-"], &thin);
+    assert_eq!(out.status.code(), Some(2));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(stderr.contains("/self_collision/thickness: the run needs about"), "{stderr}");
+    assert!(drape(&["run", "--memory-budget", "2G", "-"], &thin).status.success());
+}
+
+#[test]
+fn drape_sweep_refuses_a_variant_over_the_limits_at_its_vary_entry() {
+    let sweep =
+        r#"{"scene": {"duration": 1, "bodies": [{"type": "chain"}]}, "vary": {"/dt": [0.01, 1e-12]}}"#;
+    let out = drape(&["sweep", "-"], sweep);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("/vary/~1dt/1: variant 1: the run needs"), "{stderr}");
+    assert!(out.stdout.is_empty());
+    // Within the limits, the sweep runs.
+    let out = drape(
+        &["sweep", "--max-steps", "100", "-"],
+        r#"{"scene": {"duration": 1, "bodies": [{"type": "chain"}]}, "vary": {"/dt": [0.01, 0.02]}}"#,
+    );
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+}
+
+#[test]
+fn a_run_that_meets_more_self_collision_pairs_than_it_may_hold_exits_1_with_the_reason() {
+    // Two cloths, one falling onto the other; a budget that leaves little beyond the pairs at
+    // rest (the 64 MiB kept for the process is all but the run's share).
+    let scene = r#"{"duration": 0.2, "dt": 2e-4, "gravity": [0, 0, 0], "error_estimate": "none",
+        "bodies": [{"type": "cloth", "resolution": [10, 10], "center": [0, 0.5, 0], "velocity": [0, -5, 0]},
+                   {"type": "cloth", "resolution": [10, 10], "center": [0, 0, 0]}],
+        "self_collision": {"thickness": 0.06}, "output": {"frames": "final"}}"#;
+    let parsed = drape::scene::Scene::from_json(scene.as_bytes()).unwrap();
+    let memory = drape::jobs::Limits::default().admit(&parsed).unwrap().cost.memory();
+    let budget = (memory + drape::config::MEMORY_RESERVE).to_string();
+    let out = drape(&["run", "--memory-budget", &budget, "-"], scene);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("failed: self-collision met") && stderr.contains("candidate pairs"), "{stderr}");
+    assert!(out.stdout.is_empty());
 }

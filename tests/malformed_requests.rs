@@ -128,13 +128,12 @@ fn cases() -> Vec<Case> {
             "too much output",
             &top(r#", "output": {"fps": 100000000}"#).replace("0.01", "0.001"),
             422,
-            "/output",
+            "/output/fps",
         ),
         Case {
             path: "/simulate",
-            ..scene("over the simulate budget", &chain("").replace("0.1", "5"), 413, "")
-        }
-        .without_pointer(),
+            ..scene("over the simulate budget", &chain("").replace("0.1", "5"), 413, "/bodies/0/count")
+        },
         scene("body over the size limit", &format!(r#"{{"pad": "{}"}}"#, "x".repeat(70_000)), 413, "")
             .without_pointer(),
         // Result formats.
@@ -204,6 +203,7 @@ async fn malformed_requests_get_their_status_and_pointer_and_harm_nothing() {
             max_springs: 10_000,
             max_steps: 10_000,
             max_output_values: 1_000_000,
+            ..Limits::default()
         },
         ..jobs_config()
     };

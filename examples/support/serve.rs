@@ -81,7 +81,7 @@ impl Drop for Server {
     }
 }
 
-/// The peers' hanging cloth (`/work/shared/bench/peers/`): `n` × `n` particles on 1 m², 1 kg,
+/// The peers' hanging cloth (`docs/performance.md`): `n` × `n` particles on 1 m², 1 kg,
 /// every spring family at k = 5000 N/m and damping 0.5, drag 0.01 per particle (0.01·N² 1/s as a
 /// rate), two corners pinned, symplectic Euler in f32, the final frame's positions only.
 pub fn peers_cloth(n: u32, dt: f64, duration: f64) -> Value {

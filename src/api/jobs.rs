@@ -110,7 +110,7 @@ pub fn result_response(job: &JobRecord, result: StoredResult) -> Response {
 }
 
 /// `DELETE /jobs/{id}`: cancels a job. A queued job is dropped (`200`, status `cancelled`); a
-/// running one stops within one batch of steps (`202`); an ended one is a `409`.
+/// running one stops within a step or a solver iteration (`202`); an ended one is a `409`.
 pub async fn cancel(State(state): State<AppState>, JobPath(id): JobPath) -> Result<Response, AppError> {
     match state.jobs.cancel(&id).await? {
         None => Err(AppError::JobNotFound { id: id.to_string() }),

@@ -5,6 +5,7 @@
 //! error is an [`AppError`] answered as `application/problem+json`; limits and overload are
 //! layers (`layers.rs`) or checks before work starts.
 
+mod access;
 mod events;
 mod extract;
 mod jobs;
@@ -24,6 +25,7 @@ use axum::handler::Handler;
 use axum::http::{Method, Uri};
 use axum::routing::{MethodFilter, MethodRouter, on};
 
+pub use access::{AllowedHosts, AuthToken};
 pub use metrics::HttpMetrics;
 pub use openapi::{OPENAPI_YAML, spec as openapi_spec};
 pub use problem::{AppError, PROBLEM_JSON};
@@ -35,7 +37,8 @@ use crate::jobs::{Jobs, Sweeps};
 pub struct ApiConfig {
     /// Largest request body, in bytes.
     pub body_limit: usize,
-    /// Largest run `POST /simulate` takes, in particle-steps; larger runs go to `POST /jobs`.
+    /// Largest run `POST /simulate` takes, in element-steps (see [`Cost`](crate::jobs::Cost));
+    /// larger runs go to `POST /jobs`.
     pub simulate_work_budget: u64,
     /// Longest time to the response head of any request.
     pub request_timeout: Duration,
@@ -45,17 +48,30 @@ pub struct ApiConfig {
     pub cors_origins: Vec<String>,
     /// Most variants one sweep may make.
     pub max_sweep_variants: u64,
+    /// Bearer tokens, any of which a request must carry (but `/healthz` and CORS preflights);
+    /// none: no token is asked for.
+    pub auth_tokens: Vec<AuthToken>,
+    /// The `Host` names requests may be addressed to.
+    pub allowed_hosts: AllowedHosts,
+    /// Longest a connection may take from the first byte of a request to the end of its headers.
+    pub header_read_timeout: Duration,
+    /// Longest a connection may stay open with no request in flight and none arriving.
+    pub idle_timeout: Duration,
 }
 
 impl Default for ApiConfig {
     fn default() -> Self {
         Self {
             body_limit: 4 << 20,
-            simulate_work_budget: 50_000_000,
+            simulate_work_budget: 400_000_000,
             request_timeout: Duration::from_secs(330),
             max_concurrent_requests: 1024,
             cors_origins: vec!["*".into()],
             max_sweep_variants: 1000,
+            auth_tokens: Vec::new(),
+            allowed_hosts: AllowedHosts::Any,
+            header_read_timeout: Duration::from_secs(10),
+            idle_timeout: Duration::from_secs(60),
         }
     }
 }

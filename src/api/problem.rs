@@ -9,6 +9,7 @@ use axum::http::{HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Response};
 use serde_json::json;
 
+use super::access::Refusal;
 use crate::jobs::{JobId, JobStatus, StoreError, SubmitError, SweepSubmitError};
 use crate::scene::{FieldError, SceneError};
 use crate::sweep::SweepError;
@@ -34,6 +35,11 @@ pub enum AppError {
         detail: String,
         /// The parameters at fault.
         errors: Vec<FieldError>,
+    },
+    /// 401: tokens are required and the request carries none this server accepts.
+    Unauthorized {
+        /// What was wrong with the request's `Authorization`.
+        reason: Refusal,
     },
     /// 404: no route has this path.
     NoRoute {
@@ -91,15 +97,34 @@ pub enum AppError {
     BodyTooLarge,
     /// 413: the run is too large for `POST /simulate`; `POST /jobs` takes it.
     OverBudget {
-        /// Particle-steps of the run.
+        /// Element-steps of the run.
         work: u64,
         /// The budget of `POST /simulate`.
         budget: u64,
+        /// The field of the stage that costs the most, with why.
+        errors: Vec<FieldError>,
+    },
+    /// 414: the request target is longer than the server reads.
+    UriTooLong {
+        /// Its length, in bytes.
+        length: usize,
+        /// The longest accepted.
+        limit: usize,
+    },
+    /// 415: the body is compressed in an encoding the server cannot read.
+    UnsupportedEncoding {
+        /// The `Content-Encoding` sent.
+        found: String,
     },
     /// 415: the body is not declared as JSON.
     UnsupportedMediaType {
         /// The `Content-Type` sent, if any.
         found: Option<String>,
+    },
+    /// 421: the request is addressed to a host name this server does not answer to.
+    HostNotAllowed {
+        /// The `Host` sent, if any.
+        host: Option<String>,
     },
     /// 422: the document is JSON but not a valid scene.
     InvalidScene(Vec<FieldError>),
@@ -127,6 +152,11 @@ pub enum AppError {
     QueueFull {
         /// Seconds to wait.
         retry_after: u64,
+    },
+    /// 431: the request's header section is larger than the server reads.
+    HeadersTooLarge {
+        /// What is too large.
+        detail: String,
     },
     /// 503: the server is shutting down.
     ShuttingDown,
@@ -156,6 +186,11 @@ impl AppError {
     pub fn status(&self) -> StatusCode {
         match self {
             Self::MalformedJson { .. } | Self::BadRequest { .. } => StatusCode::BAD_REQUEST,
+            Self::Unauthorized { .. } => StatusCode::UNAUTHORIZED,
+            Self::UriTooLong { .. } => StatusCode::URI_TOO_LONG,
+            Self::UnsupportedEncoding { .. } => StatusCode::UNSUPPORTED_MEDIA_TYPE,
+            Self::HostNotAllowed { .. } => StatusCode::MISDIRECTED_REQUEST,
+            Self::HeadersTooLarge { .. } => StatusCode::REQUEST_HEADER_FIELDS_TOO_LARGE,
             Self::NoRoute { .. } | Self::JobNotFound { .. } | Self::SweepNotFound { .. } => {
                 StatusCode::NOT_FOUND
             }
@@ -188,6 +223,37 @@ impl AppError {
                 format!("line {line}, column {column}: {message}"),
             ),
             Self::BadRequest { detail, .. } => ("bad-request", "The request is invalid", detail.clone()),
+            Self::Unauthorized { reason } => (
+                "unauthorized",
+                "A bearer token is required",
+                match reason {
+                    Refusal::NoToken => "send `Authorization: Bearer <token>` with a token this server accepts (--auth-token)",
+                    Refusal::NotBearer => "the Authorization header must be `Bearer <token>`",
+                    Refusal::UnknownToken => "the bearer token is not one this server accepts",
+                }
+                .into(),
+            ),
+            Self::UriTooLong { length, limit } => (
+                "uri-too-long",
+                "The request target is too long",
+                format!("the path and query are {length} bytes long, over the {limit} this server reads"),
+            ),
+            Self::UnsupportedEncoding { found } => (
+                "unsupported-content-encoding",
+                "The body's encoding is not supported",
+                format!("Content-Encoding is `{found}`; send the body as it is or as `gzip`"),
+            ),
+            Self::HostNotAllowed { host } => (
+                "host-not-allowed",
+                "The request is addressed to another host",
+                match host {
+                    Some(host) => format!("this server does not answer to the Host `{host}` (--allowed-hosts)"),
+                    None => "the request names no Host, and this server answers only to the names of --allowed-hosts".into(),
+                },
+            ),
+            Self::HeadersTooLarge { detail } => {
+                ("header-fields-too-large", "The request's header fields are too large", detail.clone())
+            }
             Self::NoRoute { path } => {
                 ("not-found", "No such resource", format!("nothing is served at {path}"))
             }
@@ -233,11 +299,11 @@ impl AppError {
                 "The body is too large",
                 "the request body exceeds the server's limit (--body-limit)".into(),
             ),
-            Self::OverBudget { work, budget } => (
+            Self::OverBudget { work, budget, .. } => (
                 "over-simulate-budget",
                 "Too large to run synchronously",
                 format!(
-                    "the run needs {work} particle-steps (particles × steps, error-estimate companions included), over the {budget} that POST /simulate \
+                    "the run needs {work} element-steps of work (particles, springs, collider tests, self-collision pairs and wind triangles, each per step, error-estimate companions included), over the {budget} that POST /simulate \
                      runs while you wait; submit it to POST /jobs instead and fetch /jobs/{{id}}/result"
                 ),
             ),
@@ -303,6 +369,7 @@ impl AppError {
             | Self::CannotCarry { errors, .. }
             | Self::InvalidSweep(errors)
             | Self::OverLimit(errors)
+            | Self::OverBudget { errors, .. }
             | Self::BadRequest { errors, .. } => Some(errors),
             _ => None,
         }
@@ -350,8 +417,19 @@ impl IntoResponse for AppError {
             body["errors"] = json!([{"pointer": "", "detail": detail}]);
         }
         let mut response = (status, [(header::CONTENT_TYPE, PROBLEM_JSON)], body.to_string()).into_response();
-        if let Self::QueueFull { retry_after } = self {
-            response.headers_mut().insert(header::RETRY_AFTER, HeaderValue::from(retry_after));
+        match self {
+            Self::QueueFull { retry_after } => {
+                response.headers_mut().insert(header::RETRY_AFTER, HeaderValue::from(retry_after));
+            }
+            Self::Unauthorized { reason } => {
+                let challenge = match reason {
+                    Refusal::NoToken => "Bearer",
+                    Refusal::NotBearer => "Bearer error=\"invalid_request\"",
+                    Refusal::UnknownToken => "Bearer error=\"invalid_token\"",
+                };
+                response.headers_mut().insert(header::WWW_AUTHENTICATE, HeaderValue::from_static(challenge));
+            }
+            _ => {}
         }
         response
     }
@@ -379,7 +457,14 @@ impl From<SubmitError> for AppError {
     fn from(e: SubmitError) -> Self {
         match e {
             SubmitError::OverLimit(errors) => Self::OverLimit(errors),
-            SubmitError::OverBudget { work, budget } => Self::OverBudget { work, budget },
+            SubmitError::OverBudget { work, budget, pointer, stage, stage_work } => Self::OverBudget {
+                work,
+                budget,
+                errors: vec![FieldError::new(
+                    pointer,
+                    format!("{stage} costs {stage_work} of the run's {work} element-steps"),
+                )],
+            },
             SubmitError::KeyReused { key, job } => Self::KeyReused { key, job },
             SubmitError::QueueFull => Self::QueueFull { retry_after: 1 },
             SubmitError::ShuttingDown => Self::ShuttingDown,

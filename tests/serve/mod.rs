@@ -25,9 +25,14 @@ pub struct Server {
 impl Server {
     /// Starts `drape serve` in `dir` with `args` after the store and a free port.
     pub fn start(dir: &Path, store: &str, args: &[&str]) -> Self {
+        Self::start_on(dir, store, "127.0.0.1:0", args)
+    }
+
+    /// Starts `drape serve` in `dir` on `addr` with `args` after the store.
+    pub fn start_on(dir: &Path, store: &str, addr: &str, args: &[&str]) -> Self {
         let mut child = Command::new(env!("CARGO_BIN_EXE_drape"))
             .current_dir(dir)
-            .args(["serve", "--store", store, "--addr", "127.0.0.1:0"])
+            .args(["serve", "--store", store, "--addr", addr])
             .args(args)
             .env("RUST_LOG", "info")
             .stdout(Stdio::piped())
@@ -51,6 +56,11 @@ impl Server {
         Self { child, base, log }
     }
 
+    /// The process id.
+    pub fn pid(&self) -> u32 {
+        self.child.id()
+    }
+
     /// Kills the process with SIGKILL: no shutdown, no cleanup, as a crash.
     pub fn kill(mut self) {
         self.child.kill().unwrap();
@@ -62,6 +72,46 @@ impl Server {
         let pid = self.child.id().to_string();
         assert!(Command::new("kill").args(["-TERM", &pid]).status().unwrap().success());
         assert!(self.child.wait().unwrap().success(), "drape serve exits 0 on SIGTERM");
+    }
+
+    /// Stops the process with SIGTERM, checks that it exits 0 within `deadline`, and returns how
+    /// long it took.
+    pub fn terminate_within(mut self, deadline: Duration) -> Duration {
+        let pid = self.child.id().to_string();
+        let sent = std::time::Instant::now();
+        assert!(Command::new("kill").args(["-TERM", &pid]).status().unwrap().success());
+        loop {
+            if let Some(status) = self.child.try_wait().unwrap() {
+                assert!(status.success(), "drape serve exits 0 on SIGTERM");
+                return sent.elapsed();
+            }
+            assert!(sent.elapsed() < deadline, "drape serve did not exit within {deadline:?} of SIGTERM");
+            std::thread::sleep(Duration::from_millis(10));
+        }
+    }
+
+    /// The lines the process logged so far.
+    pub fn log(&self) -> Vec<String> {
+        self.log.lock().unwrap().clone()
+    }
+
+    /// Waits, within [`PATIENCE`], for a line of the log that contains `text`, and returns the
+    /// whole log up to then.
+    pub fn wait_for_log(&self, text: &str) -> Vec<String> {
+        let deadline = std::time::Instant::now() + PATIENCE;
+        loop {
+            let log = self.log.lock().unwrap().clone();
+            if log.iter().any(|line| line.contains(text)) {
+                return log;
+            }
+            assert!(std::time::Instant::now() < deadline, "no `{text}` in the log:\n{}", log.join("\n"));
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    }
+
+    /// Stops the process with SIGTERM and checks that it exits 0 within [`PATIENCE`].
+    pub fn terminate_within_patience(self) {
+        self.terminate_within(PATIENCE);
     }
 
     /// How many times each job was started here, from the `job started` lines of the log.
