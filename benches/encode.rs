@@ -1,9 +1,9 @@
 //! Encoding throughput of each result format, in bytes of output per second, for a 128 × 128
 //! cloth with 300 frames.
 //!
-//! Simulating 300 frames of that cloth takes about a minute, and an encoder's cost does not
-//! depend on where the numbers came from, so the recording is made from a short real run (its
-//! mesh, bodies and stats) whose frames are then filled with a travelling wave.
+//! Simulating 300 frames of that cloth would take far longer than encoding them, and an encoder's
+//! cost does not depend on where the numbers came from, so the recording is made from a short
+//! real run (its mesh, bodies and stats) whose frames are then filled with a travelling wave.
 
 // `criterion_group!` defines a public function without documentation.
 #![allow(missing_docs)]

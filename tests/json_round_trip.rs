@@ -72,3 +72,42 @@ fn other_bytes_are_refused_not_misread() {
     let text = String::from_utf8(json(&recording)).unwrap().replace("\"symplectic_euler\"", "\"leapfrog\"");
     assert!(read_json(text.as_bytes()).is_err());
 }
+
+/// The issue's diverged chain: so heavy that its gravitational energy overflows to infinity.
+const OVERFLOWING: &str = r#"{"duration": 1, "integrator": "rk4", "bodies": [{"type": "chain", "mass": 1e308}],
+    "output": {"fields": ["positions", "energy"]}}"#;
+
+#[test]
+fn a_number_that_is_not_finite_is_null_and_reads_back_as_nan() {
+    let mut recording = run(OVERFLOWING);
+    assert_eq!(recording.stats.status.name(), "diverged");
+    let energy = &recording.frames.energy.as_ref().unwrap()[0];
+    assert_eq!(energy.gravitational, f64::INFINITY);
+    // Velocities, a stored statistic and a strain that are not finite, beside the energy.
+    recording.frames.velocities = Some([f64::NAN, f64::INFINITY, 0.5].repeat(recording.particles).into());
+    recording.frames.strain = Some(vec![f64::NEG_INFINITY; recording.springs]);
+    recording.stats.max_strain = Some(f64::INFINITY);
+
+    let written = json(&recording);
+    let value: serde_json::Value = serde_json::from_slice(&written).unwrap();
+    let frame = &value["frames"][0];
+    assert_eq!(frame["energy"], serde_json::json!({"kinetic": 0.0, "gravitational": null, "spring": 0.0}));
+    assert_eq!(
+        frame["velocities"].as_array().unwrap()[0..3],
+        [serde_json::Value::Null, serde_json::Value::Null, 0.5.into()]
+    );
+    assert_eq!(frame["strain"].as_array().unwrap().iter().filter(|s| s.is_null()).count(), recording.springs);
+    assert_eq!(value["stats"]["max_strain"], serde_json::Value::Null);
+    assert!(value["stats"].get("energy").is_none(), "a statistic that does not apply is left out");
+
+    let read = read_json(&written).unwrap();
+    assert!(read.frames.energy.as_ref().unwrap()[0].gravitational.is_nan());
+    let drape::run::Samples::F64(velocities) = read.frames.velocities.as_ref().unwrap() else { panic!() };
+    assert_eq!(velocities.iter().filter(|v| v.is_nan()).count(), 2 * recording.particles);
+    assert_eq!(velocities[2], 0.5);
+    assert!(read.frames.strain.as_ref().unwrap().iter().all(|s| s.is_nan()));
+    assert!(read.stats.max_strain.unwrap().is_nan());
+    assert_eq!(read.stats.energy, None);
+    assert_eq!(read.stats.diverged, recording.stats.diverged);
+    assert_eq!(json(&read), written, "writing what was read gives the same bytes");
+}

@@ -14,7 +14,12 @@
 //!
 //! Floats are `f32`, as glTF requires: an `f64` run is rounded to the nearest `f32`. A delta is
 //! the exact difference rounded once to `f32`, so a frame shows within half an `f32` step of the
-//! delta's size. The BIN chunk is written straight from the recording; only the last frame of
+//! delta's size. glTF has no place for a value that is not finite (the Khronos validator refuses
+//! NaN and infinity in accessors, and `min`/`max` must be numbers), so a frame that holds one in
+//! `f32` (a position beyond `f32`'s range, a NaN read back from a JSON `null`), or whose delta
+//! would be one, is left out: the file shows the other frames, the last of them as its base, and
+//! lists the indices of the frames it left out in `asset.extras.omitted_frames`. A recording with
+//! no such frame at all cannot be a GLB ([`shown_frames`] is empty, and `encode` refuses it). The BIN chunk is written straight from the recording; only the last frame of
 //! each body is held in `f32` while the header is built.
 
 use std::io::{self, Write};
@@ -38,9 +43,14 @@ const MODE_TRIANGLES: u32 = 4;
 /// The normal given to a vertex on no triangle, which glTF would otherwise refuse as non-unit.
 const UNDRAWN_NORMAL: [f32; 3] = [0.0, 1.0, 0.0];
 
-/// Writes `recording` as a GLB file. It needs positions and at least one frame.
+/// Writes `recording` as a GLB file. It needs positions and at least one frame that glTF can
+/// show (see [`shown_frames`]).
 pub(super) fn write_glb<W: Write>(recording: &Recording, w: &mut W) -> io::Result<()> {
-    let glb = Glb::plan(recording);
+    let shown = shown_frames(recording);
+    if shown.is_empty() {
+        return Err(io::Error::new(io::ErrorKind::InvalidInput, "no frame has finite f32 positions"));
+    }
+    let glb = Glb::plan(recording, shown);
     let mut json_chunk = serde_json::to_vec(&glb.document).map_err(io::Error::other)?;
     json_chunk.resize(json_chunk.len().next_multiple_of(4), b' ');
     let bin_length = glb.layout_length;
@@ -69,6 +79,8 @@ struct Glb<'a> {
     positions: &'a Samples,
     normals: Option<&'a Samples>,
     bodies: Vec<BodyPlan<'a>>,
+    /// The indices of the recorded frames the file shows, in order.
+    shown: Vec<usize>,
     times: Vec<f32>,
     document: Value,
     layout_length: usize,
@@ -78,15 +90,19 @@ impl<'a> Glb<'a> {
     /// Lays out the BIN chunk (body by body: base positions, normals, indices, then the targets;
     /// then the animation's times and weights) and describes it in the JSON document. Reads the
     /// frames once, for the targets' bounds.
-    fn plan(recording: &'a Recording) -> Self {
+    fn plan(recording: &'a Recording, shown: Vec<usize>) -> Self {
         let positions = recording.frames.positions.as_ref().expect("checked by encode");
         let normals = recording.frames.normals.as_ref();
-        let frames = recording.frames.len();
-        let bodies: Vec<BodyPlan> =
-            recording.bodies.iter().map(|body| BodyPlan::new(recording, body, positions, normals)).collect();
+        let frames = shown.len();
+        let last = shown[frames - 1];
+        let bodies: Vec<BodyPlan> = recording
+            .bodies
+            .iter()
+            .map(|body| BodyPlan::new(recording, body, last, positions, normals))
+            .collect();
         let mut layout = Layout::default();
         let meshes: Vec<Value> =
-            bodies.iter().map(|plan| plan.mesh(&mut layout, recording, positions, normals)).collect();
+            bodies.iter().map(|plan| plan.mesh(&mut layout, recording, &shown, positions, normals)).collect();
         let nodes: Vec<Value> = bodies
             .iter()
             .enumerate()
@@ -99,12 +115,17 @@ impl<'a> Glb<'a> {
             "nodes": nodes,
             "meshes": meshes,
         });
+        if frames < recording.frames.len() {
+            let omitted: Vec<usize> =
+                (0..recording.frames.len()).filter(|k| shown.binary_search(k).is_err()).collect();
+            document["asset"]["extras"] = json!({ "omitted_frames": omitted });
+        }
         if bodies.iter().any(|b| !b.triangles.is_empty()) {
             // Only triangle primitives use it; the validator flags an unused material.
             document["materials"] = json!([{ "name": "cloth", "doubleSided": true,
                 "pbrMetallicRoughness": { "metallicFactor": 0.0, "roughnessFactor": 0.8 } }]);
         }
-        let times: Vec<f32> = recording.frames.times.iter().map(|&t| t as f32).collect();
+        let times: Vec<f32> = shown.iter().map(|&k| recording.frames.times[k] as f32).collect();
         if frames > 1 {
             let time_view = layout.view(4 * frames, None, None);
             let bounds = (json!([times[0]]), json!([times[frames - 1]]));
@@ -133,12 +154,12 @@ impl<'a> Glb<'a> {
         document["accessors"] = layout.accessors.into();
         document["bufferViews"] = layout.views.into();
         document["buffers"] = json!([{ "byteLength": layout_length }]);
-        Self { recording, positions, normals, bodies, times, document, layout_length }
+        Self { recording, positions, normals, bodies, shown, times, document, layout_length }
     }
 
     /// The BIN chunk, in the order [`Glb::plan`] laid it out.
     fn write_bin<W: Write>(&self, w: &mut W) -> io::Result<()> {
-        let (recording, frames) = (self.recording, self.recording.frames.len());
+        let (recording, frames) = (self.recording, self.shown.len());
         let mut buffer = Vec::new();
         for plan in &self.bodies {
             let body = plan.body;
@@ -150,7 +171,7 @@ impl<'a> Glb<'a> {
             if frames == 1 {
                 continue;
             }
-            for k in 0..frames {
+            for &k in &self.shown {
                 buffer.clear();
                 for_each_delta(self.positions, recording.particles, k, body, &plan.base_positions, |d| {
                     d.iter().for_each(|x| buffer.extend_from_slice(&x.to_le_bytes()))
@@ -158,7 +179,7 @@ impl<'a> Glb<'a> {
                 w.write_all(&buffer)?;
             }
             if let (Some(normals), Some(base_normals)) = (self.normals, &plan.base_normals) {
-                for k in 0..frames {
+                for &k in &self.shown {
                     let shown =
                         body_vectors(normals, recording.particles, k, body).into_iter().map(shown_normal);
                     let deltas = shown
@@ -187,13 +208,14 @@ struct BodyPlan<'a> {
 }
 
 impl<'a> BodyPlan<'a> {
+    /// The body in frame `last`, which the file shows as its base.
     fn new(
         recording: &Recording,
         body: &'a BodyInfo,
+        last: usize,
         positions: &Samples,
         normals: Option<&Samples>,
     ) -> Self {
-        let last = recording.frames.len() - 1;
         let base_positions = to_f32(positions, body_range(recording.particles, last, body));
         let triangles = body_triangles(recording, body);
         let base_normals = (!triangles.is_empty()).then(|| {
@@ -208,16 +230,17 @@ impl<'a> BodyPlan<'a> {
 }
 
 impl BodyPlan<'_> {
-    /// The body's mesh: one primitive of its last frame and, with several frames, one morph
-    /// target per frame. Lays out the views it uses.
+    /// The body's mesh: one primitive of its base frame and, with several frames shown, one morph
+    /// target per frame shown. Lays out the views it uses.
     fn mesh(
         &self,
         layout: &mut Layout,
         recording: &Recording,
+        shown: &[usize],
         positions: &Samples,
         normals: Option<&Samples>,
     ) -> Value {
-        let (body, frames) = (self.body, recording.frames.len());
+        let (body, frames) = (self.body, shown.len());
         let mut base = Bounds::default();
         self.base_positions.chunks_exact(3).for_each(|c| base.add([c[0], c[1], c[2]]));
         let view = layout.view(12 * body.count, Some(ARRAY_BUFFER), None);
@@ -241,11 +264,16 @@ impl BodyPlan<'_> {
         let frame_bytes = 12 * body.count;
         // Targets share a view, so it needs a stride (glTF 2.0 §3.6.2.4).
         let position_view = layout.view(frames * frame_bytes, Some(ARRAY_BUFFER), Some(12));
-        let mut targets: Vec<Value> = (0..frames)
-            .map(|k| {
+        let mut targets: Vec<Value> = shown
+            .iter()
+            .enumerate()
+            .map(|(target, &k)| {
                 let mut deltas = Bounds::default();
-                for_each_delta(positions, recording.particles, k, body, &self.base_positions, |d| deltas.add(d));
-                json!({ "POSITION": layout.vec3(position_view, k * frame_bytes, body.count, Some(deltas.json())) })
+                for_each_delta(positions, recording.particles, k, body, &self.base_positions, |d| {
+                    deltas.add(d)
+                });
+                let offset = target * frame_bytes;
+                json!({ "POSITION": layout.vec3(position_view, offset, body.count, Some(deltas.json())) })
             })
             .collect();
         if normals.is_some() && self.base_normals.is_some() {
@@ -258,6 +286,37 @@ impl BodyPlan<'_> {
         mesh["weights"] = vec![0.0; frames].into();
         mesh
     }
+}
+
+/// The recorded frames a GLB file can show, in order: those whose positions (and normals, if
+/// recorded) are finite in `f32`, and whose position deltas against the last of them are too.
+pub(super) fn shown_frames(recording: &Recording) -> Vec<usize> {
+    let Some(positions) = recording.frames.positions.as_ref() else { return Vec::new() };
+    let per_frame = 3 * recording.particles;
+    let finite = |samples: &Samples, k: usize| {
+        let range = k * per_frame..(k + 1) * per_frame;
+        match samples {
+            Samples::F32(v) => v[range].iter().all(|x| x.is_finite()),
+            Samples::F64(v) => v[range].iter().all(|&x| (x as f32).is_finite()),
+        }
+    };
+    let normals = recording.frames.normals.as_ref();
+    let candidates: Vec<usize> = (0..recording.frames.len())
+        .filter(|&k| finite(positions, k) && normals.is_none_or(|n| finite(n, k)))
+        .collect();
+    let Some(&last) = candidates.last() else { return candidates };
+    let base = to_f32(positions, last * per_frame..(last + 1) * per_frame);
+    let whole = BodyInfo { name: String::new(), kind: "", offset: 0, count: recording.particles };
+    candidates
+        .into_iter()
+        .filter(|&k| {
+            let mut all_finite = true;
+            for_each_delta(positions, recording.particles, k, &whole, &base, |d| {
+                all_finite &= d.iter().all(|x| x.is_finite())
+            });
+            all_finite
+        })
+        .collect()
 }
 
 /// A normal as glTF shows it: in `f32`, and unit even where the surface gave none.

@@ -1,8 +1,10 @@
 //! The JSON result: `mesh`, `frames`, `final` and `stats`, with flat numeric arrays.
 //!
 //! Numbers are written in the run's precision: an `f32` run prints the shortest decimal that
-//! reads back as the same `f32`. `frames` is present for `frames: all`, `final` when the run
-//! finished with a frame to show. Statistics that do not apply are left out, never `null`.
+//! reads back as the same `f32`. JSON has no NaN or infinity, so a number that is not finite (an
+//! energy that overflowed, say) is written as `null`, wherever it is. `frames` is present for
+//! `frames: all`, `final` when the run finished with a frame to show. Statistics that do not
+//! apply are left out, never `null`: a `null` is always a number that was not finite.
 
 use std::io::{self, Write};
 
@@ -16,7 +18,8 @@ use crate::solver::Energy;
 /// Writes `recording` as the JSON result.
 pub fn write_json<W: Write>(recording: &Recording, writer: W) -> io::Result<()> {
     let mut serializer = serde_json::Serializer::new(writer);
-    ResultView(recording).serialize(&mut serializer).map_err(io::Error::other)
+    // `From` hands back a writer's own error as it was, so its caller can still tell what it is.
+    ResultView(recording).serialize(&mut serializer).map_err(io::Error::from)
 }
 
 /// The `stats` object of the JSON result on its own, for job listings and progress views.
@@ -151,6 +154,9 @@ impl Serialize for StatsView<'_> {
                 diverged["suggested_dt"] = dt.into();
             }
             map.serialize_entry("diverged", &diverged)?;
+        }
+        if let Some(failure) = &st.failure {
+            map.serialize_entry("failure", failure)?;
         }
         if let Some(t) = st.stopped_at_rest {
             map.serialize_entry("stopped_at_rest", &t)?;

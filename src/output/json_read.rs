@@ -5,6 +5,11 @@
 //! precision, bit for bit, and every statistic. A service can keep it alone and still answer in
 //! any other format later, by reading it back and encoding the recording again; writing what
 //! this reads gives back the same bytes.
+//!
+//! JSON has no number for NaN or infinity, so the writer puts `null` where a value is not
+//! finite (an energy that overflowed, say); this reads every such `null` back as NaN. Which
+//! non-finite value it was is lost, and nothing else is: writing the recording again gives the
+//! same `null`. A statistic that does not apply is left out, not `null`, so the two stay apart.
 
 use serde::Deserialize;
 use serde_json::Value;
@@ -59,24 +64,34 @@ struct BodyIn {
 
 #[derive(Deserialize)]
 struct FrameIn {
-    t: f64,
-    positions: Option<Vec<f64>>,
-    velocities: Option<Vec<f64>>,
-    normals: Option<Vec<f64>>,
+    t: Number,
+    positions: Option<Vec<Number>>,
+    velocities: Option<Vec<Number>>,
+    normals: Option<Vec<Number>>,
     energy: Option<EnergyIn>,
-    strain: Option<Vec<f64>>,
+    strain: Option<Vec<Number>>,
 }
 
 #[derive(Deserialize)]
 struct EnergyIn {
-    kinetic: f64,
-    gravitational: f64,
-    spring: f64,
+    kinetic: Number,
+    gravitational: Number,
+    spring: Number,
 }
 
 impl From<&EnergyIn> for Energy {
     fn from(e: &EnergyIn) -> Self {
-        Energy { kinetic: e.kinetic, gravitational: e.gravitational, spring: e.spring }
+        Energy { kinetic: e.kinetic.0, gravitational: e.gravitational.0, spring: e.spring.0 }
+    }
+}
+
+/// A number of the result: `null` stands for a value that was not finite, and reads as NaN.
+#[derive(Clone, Copy)]
+struct Number(f64);
+
+impl<'de> Deserialize<'de> for Number {
+    fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        Ok(Number(Option::<f64>::deserialize(deserializer)?.unwrap_or(f64::NAN)))
     }
 }
 
@@ -90,9 +105,9 @@ pub fn read_json(bytes: &[u8]) -> Result<Recording, ReadError> {
         (None, None) => (FrameSelection::None, Vec::new(), false),
     };
     // A field is recorded when the first frame carries it.
-    let samples = |pick: fn(&FrameIn) -> Option<&Vec<f64>>| -> Option<Samples> {
+    let samples = |pick: fn(&FrameIn) -> Option<&Vec<Number>>| -> Option<Samples> {
         pick(frames.first()?)?;
-        let values = frames.iter().flat_map(|f| pick(f).into_iter().flatten().copied());
+        let values = frames.iter().flat_map(|f| pick(f).into_iter().flatten().map(|n| n.0));
         Some(match stats.precision {
             Precision::F32 => Samples::F32(values.map(|v| v as f32).collect()),
             Precision::F64 => Samples::F64(values.collect()),
@@ -111,7 +126,7 @@ pub fn read_json(bytes: &[u8]) -> Result<Recording, ReadError> {
         })
         .collect::<Result<_, ReadError>>()?;
     let recorded = Frames {
-        times: frames.iter().map(|f| f.t).collect(),
+        times: frames.iter().map(|f| f.t.0).collect(),
         positions: samples(|f| f.positions.as_ref()),
         velocities: samples(|f| f.velocities.as_ref()),
         normals: samples(|f| f.normals.as_ref()),
@@ -122,7 +137,7 @@ pub fn read_json(bytes: &[u8]) -> Result<Recording, ReadError> {
         strain: frames
             .first()
             .and_then(|f| f.strain.as_ref())
-            .map(|_| frames.iter().flat_map(|f| f.strain.iter().flatten().copied()).collect()),
+            .map(|_| frames.iter().flat_map(|f| f.strain.iter().flatten().map(|n| n.0)).collect()),
     };
     Ok(Recording {
         particles: result.mesh.particles,
@@ -146,7 +161,11 @@ fn named<T: Copy>(field: &'static str, value: &Value, options: &[(&str, T)]) -> 
         .ok_or(ReadError::Value { field, value: value.to_string() })
 }
 
+/// A statistic's number; `null` is one that was not finite, read as NaN.
 fn number(field: &'static str, value: &Value) -> Result<f64, ReadError> {
+    if value.is_null() {
+        return Ok(f64::NAN);
+    }
     value.as_f64().ok_or(ReadError::Value { field, value: value.to_string() })
 }
 
@@ -154,11 +173,13 @@ fn count(field: &'static str, value: &Value) -> Result<u64, ReadError> {
     value.as_u64().ok_or(ReadError::Value { field, value: value.to_string() })
 }
 
+/// A statistic that is left out when it does not apply: absent is `None`, while `null` is a
+/// value that was not finite.
 fn optional<T>(
-    value: &Value,
+    value: Option<&Value>,
     read: impl FnOnce(&Value) -> Result<T, ReadError>,
 ) -> Result<Option<T>, ReadError> {
-    if value.is_null() { Ok(None) } else { read(value).map(Some) }
+    value.map(read).transpose()
 }
 
 fn read_stats(s: &Value) -> Result<Stats, ReadError> {
@@ -179,6 +200,7 @@ fn read_stats(s: &Value) -> Result<Stats, ReadError> {
                 ("succeeded", Status::Succeeded),
                 ("diverged", Status::Diverged),
                 ("cancelled", Status::Cancelled),
+                ("failed", Status::Failed),
             ],
         )?,
         wall_time_s: number("stats.wall_time_s", &s["wall_time_s"])?,
@@ -196,19 +218,20 @@ fn read_stats(s: &Value) -> Result<Stats, ReadError> {
             &[("f32", Precision::F32), ("f64", Precision::F64)],
         )?,
         stages,
-        energy: optional(&s["energy"], |e| Ok(Energy::from(&EnergyIn::deserialize(e)?)))?,
-        max_strain: optional(&s["max_strain"], |v| number("stats.max_strain", v))?,
-        stable_dt: optional(&s["stable_dt"], |v| number("stats.stable_dt", v))?,
-        diverged: optional(&s["diverged"], |d| {
+        energy: optional(s.get("energy"), |e| Ok(Energy::from(&EnergyIn::deserialize(e)?)))?,
+        max_strain: optional(s.get("max_strain"), |v| number("stats.max_strain", v))?,
+        stable_dt: optional(s.get("stable_dt"), |v| number("stats.stable_dt", v))?,
+        diverged: optional(s.get("diverged"), |d| {
             Ok(Diverged {
                 step: count("stats.diverged.step", &d["step"])?,
                 t: number("stats.diverged.t", &d["t"])?,
                 reason: d["reason"].as_str().unwrap_or_default().to_string(),
-                suggested_dt: optional(&d["suggested_dt"], |v| number("stats.diverged.suggested_dt", v))?,
+                suggested_dt: optional(d.get("suggested_dt"), |v| number("stats.diverged.suggested_dt", v))?,
             })
         })?,
-        stopped_at_rest: optional(&s["stopped_at_rest"], |v| number("stats.stopped_at_rest", v))?,
-        linear_solver: optional(&s["linear_solver"], |l| {
+        failure: s["failure"].as_str().map(str::to_string),
+        stopped_at_rest: optional(s.get("stopped_at_rest"), |v| number("stats.stopped_at_rest", v))?,
+        linear_solver: optional(s.get("linear_solver"), |l| {
             let mean = number("stats.linear_solver.mean_iterations", &l["mean_iterations"])?;
             Ok(LinearSolveStats {
                 tolerance: number("stats.linear_solver.tolerance", &l["tolerance"])?,
@@ -225,7 +248,7 @@ fn read_stats(s: &Value) -> Result<Stats, ReadError> {
                 last_residual: number("stats.linear_solver.last_residual", &l["last_residual"])?,
             })
         })?,
-        error: optional(&s["error"], read_error)?,
+        error: optional(s.get("error"), read_error)?,
     })
 }
 
@@ -237,7 +260,7 @@ fn read_error(e: &Value) -> Result<ErrorEstimate, ReadError> {
         None => EstimateOutcome::Estimate {
             max: number("stats.error.max", &e["max"])?,
             rms: number("stats.error.rms", &e["rms"])?,
-            observed_order: optional(&e["observed_order"], |v| number("stats.error.observed_order", v))?,
+            observed_order: optional(e.get("observed_order"), |v| number("stats.error.observed_order", v))?,
             reliable: e["reliable"].as_bool(),
         },
     };

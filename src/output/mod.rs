@@ -5,7 +5,9 @@
 //! frames: formats that need lengths up front (glTF, NPY) compute them from the recording first.
 //! Numbers are the recording's own: a format in the run's precision carries the same bits as the
 //! JSON result; glTF and PC2 are `f32` by their specifications, so an `f64` run is rounded to
-//! the nearest `f32` there.
+//! the nearest `f32` there. A value that is not finite has one spelling per format: `null` in
+//! JSON, `NaN`/`Infinity`/`-Infinity` in OBJ, the IEEE value itself in NPY, NPZ and PC2; glTF
+//! allows none, so a GLB leaves out the frames that hold one.
 
 mod format;
 mod glb;
@@ -87,6 +89,11 @@ fn unencodable(recording: &Recording, format: Format) -> Option<String> {
     }
     if format != Format::Json && recording.frames.is_empty() {
         return Some(format!("format {} needs a frame, and the run recorded none", format.name()));
+    }
+    if format == Format::Glb && glb::shown_frames(recording).is_empty() {
+        return Some(
+            "format glb needs a frame whose positions are finite in f32, and the run has none".into(),
+        );
     }
     None
 }

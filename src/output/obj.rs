@@ -4,8 +4,11 @@
 //! or `l` for a chain, which has no faces.
 //!
 //! Numbers are written in the run's precision, as the shortest decimal that reads back as the
-//! same value: the same numbers as the JSON result's. Normals are the recording's when the run
-//! recorded them, otherwise computed here from the triangles (zero for a vertex on no triangle).
+//! same value: the same numbers as the JSON result's. A value that is not finite is written
+//! `NaN`, `Infinity` or `-Infinity`, the spellings that C's `strtod`, Rust's and Python's float
+//! parsing and JavaScript's `parseFloat` all read back as that value. Normals are the
+//! recording's when the run recorded them, otherwise computed here from the triangles (zero for
+//! a vertex on no triangle).
 
 use std::io::{self, Write};
 
@@ -43,8 +46,8 @@ pub(super) fn write_obj<W: Write>(recording: &Recording, w: &mut W) -> io::Resul
                     vertex_normals(&body_vectors(positions, recording.particles, last, body), &triangles);
                 for n in computed {
                     match positions {
-                        Samples::F32(_) => writeln!(w, "vn {} {} {}", n[0] as f32, n[1] as f32, n[2] as f32)?,
-                        Samples::F64(_) => writeln!(w, "vn {} {} {}", n[0], n[1], n[2])?,
+                        Samples::F32(_) => write_vector(w, "vn", n.map(|x| x as f32))?,
+                        Samples::F64(_) => write_vector(w, "vn", n)?,
                     }
                 }
             }
@@ -59,8 +62,7 @@ pub(super) fn write_obj<W: Write>(recording: &Recording, w: &mut W) -> io::Resul
     Ok(())
 }
 
-/// One `tag x y z` line per vector in `range`, in the samples' precision. Rust's `Display` for
-/// floats prints the shortest decimal that reads back as the same value, never an exponent.
+/// One `tag x y z` line per vector in `range`, in the samples' precision.
 fn write_vectors<W: Write>(
     w: &mut W,
     tag: &str,
@@ -69,10 +71,30 @@ fn write_vectors<W: Write>(
 ) -> io::Result<()> {
     match samples {
         Samples::F32(v) => {
-            v[range].chunks_exact(3).try_for_each(|c| writeln!(w, "{tag} {} {} {}", c[0], c[1], c[2]))
+            v[range].chunks_exact(3).try_for_each(|c| write_vector(w, tag, [c[0], c[1], c[2]]))
         }
         Samples::F64(v) => {
-            v[range].chunks_exact(3).try_for_each(|c| writeln!(w, "{tag} {} {} {}", c[0], c[1], c[2]))
+            v[range].chunks_exact(3).try_for_each(|c| write_vector(w, tag, [c[0], c[1], c[2]]))
         }
     }
+}
+
+/// One `tag x y z` line. Rust's `Display` for a finite float prints the shortest decimal that
+/// reads back as the same value, never an exponent; its `inf` is not what every reader takes.
+fn write_vector<W: Write, T: Copy + Into<f64> + std::fmt::Display>(
+    w: &mut W,
+    tag: &str,
+    v: [T; 3],
+) -> io::Result<()> {
+    write!(w, "{tag}")?;
+    for x in v {
+        let wide: f64 = x.into();
+        match wide {
+            _ if wide.is_finite() => write!(w, " {x}")?,
+            _ if wide.is_nan() => write!(w, " NaN")?,
+            _ if wide > 0.0 => write!(w, " Infinity")?,
+            _ => write!(w, " -Infinity")?,
+        }
+    }
+    writeln!(w)
 }

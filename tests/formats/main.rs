@@ -1,8 +1,11 @@
 //! Each result format read back by a reader that is not ours, and checked against the JSON
 //! result of the same run, number for number.
 
+#[path = "../common/mod.rs"]
+mod api;
 mod common;
 mod glb;
+mod non_finite;
 mod npy;
 mod obj;
 mod pc2;
