@@ -83,3 +83,108 @@ fn the_scene_schema_lists_every_top_level_field() {
     let accepted: BTreeSet<&str> = detail.split('`').skip(3).step_by(2).collect();
     assert_eq!(described, accepted, "{detail}");
 }
+
+/// Every operation but `/healthz` is under the bearer scheme and lists its 401; every operation
+/// lists the 421 of a refused `Host` and the 414 and 431 of an oversized head, and every POST the
+/// 415 of a body that is not JSON or not in gzip.
+#[test]
+fn every_operation_but_healthz_declares_the_bearer_scheme() {
+    let spec = yaml();
+    assert_eq!(spec["components"]["securitySchemes"]["bearer"]["scheme"], "bearer");
+    assert_eq!(spec["security"], serde_json::json!([{"bearer": []}, {}]));
+    let mut checked = 0;
+    for (method, path) in spec_operations(&spec) {
+        let operation = &spec["paths"][&path][method.to_lowercase()];
+        let responses = &operation["responses"];
+        assert!(responses.get("421").is_some(), "{method} {path} lacks 421");
+        assert_eq!(responses["414"]["$ref"], "#/components/responses/UriTooLong", "{method} {path}");
+        assert_eq!(
+            responses["431"]["$ref"], "#/components/responses/HeaderFieldsTooLarge",
+            "{method} {path}"
+        );
+        if method == "POST" {
+            assert_eq!(
+                responses["415"]["$ref"], "#/components/responses/UnsupportedMediaType",
+                "{method} {path}"
+            );
+        }
+        if path == "/healthz" {
+            assert_eq!(operation["security"], serde_json::json!([]), "{method} {path}");
+            assert!(responses.get("401").is_none(), "{method} {path}");
+        } else {
+            assert!(operation.get("security").is_none(), "{method} {path} overrides the security");
+            assert_eq!(responses["401"]["$ref"], "#/components/responses/Unauthorized", "{method} {path}");
+        }
+        checked += 1;
+    }
+    assert_eq!(checked, routes().len());
+}
+
+/// What Schemathesis (`.ci/schemathesis`) found the description and the server disagreeing on,
+/// each checked on both sides: the description now says what the server does.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_description_states_what_the_server_accepts_and_answers() {
+    let spec = yaml();
+    let (_, app) = test_app(jobs_config(), ApiConfig::default());
+    let job = post_json(&app, "/jobs", TINY).await.json();
+    let id = job["id"].as_str().unwrap().to_string();
+    poll_until(&app, &id, is_final).await;
+
+    // An unknown ?format= is a 400, a response the result operation lists.
+    let result = &spec["paths"]["/jobs/{id}/result"]["get"]["responses"];
+    assert!(result.get("400").is_some(), "{result}");
+    let unknown = get(&app, &format!("/jobs/{id}/result?format=AAA")).await;
+    assert_eq!(unknown.status, 400);
+    assert_eq!(unknown.problem()["errors"][0]["pointer"], "/format");
+
+    // `offset` is at most u32::MAX.
+    let offset = &spec["paths"]["/jobs"]["get"]["parameters"][0];
+    assert_eq!(
+        (offset["name"].as_str(), offset["schema"]["maximum"].as_u64()),
+        (Some("offset"), Some(4294967295))
+    );
+    assert_eq!(get(&app, "/jobs?offset=4294967295").await.status, 200);
+    assert_eq!(get(&app, "/jobs?offset=4294967296").await.status, 400);
+
+    // Idempotency-Key: 1 to 255 visible ASCII characters, as the pattern says.
+    let key = &spec["paths"]["/jobs"]["post"]["parameters"][1];
+    assert_eq!(key["name"], "Idempotency-Key");
+    assert_eq!(key["schema"]["pattern"], "^[!-~]{1,255}$");
+    let keyed = |key: &str| {
+        Request::post("/jobs")
+            .header("content-type", "application/json")
+            .header("idempotency-key", key)
+            .body(Body::from(TINY))
+            .unwrap()
+    };
+    assert_eq!(send(&app, keyed("a b")).await.status, 400);
+    assert_eq!(send(&app, keyed(&"~".repeat(256))).await.status, 400);
+    assert_eq!(send(&app, keyed(&"~".repeat(255))).await.status, 202);
+
+    // An optional scene field without a default may be null, meaning left out.
+    let scene = &spec["components"]["schemas"]["Scene"]["properties"];
+    for field in ["dt", "stop_at_rest", "strain_limit", "self_collision"] {
+        assert!(scene[field]["type"].as_array().is_some_and(|t| t.contains(&"null".into())), "{field}");
+    }
+    for field in ["wind", "output"] {
+        assert_eq!(scene[field]["anyOf"][1], serde_json::json!({"type": "null"}), "{field}");
+    }
+    let nulls = TINY.replacen(
+        '{',
+        r#"{"dt": null, "stop_at_rest": null, "strain_limit": null, "self_collision": null, "wind": null, "#,
+        1,
+    );
+    assert_eq!(post_json(&app, "/simulate", &nulls).await.status, 200);
+    // A field with a default is not nullable, and null there is refused at the field.
+    assert_eq!(scene["drag"]["type"], "number");
+    let answer = post_json(&app, "/simulate", &TINY.replacen('{', r#"{"drag": null, "#, 1)).await;
+    assert_eq!(answer.status, 422);
+    assert_eq!(answer.problem()["errors"][0]["pointer"], "/drag");
+
+    // Each server-sent event is an object with `event` and JSON `data`.
+    let events = &spec["paths"]["/jobs/{id}/events"]["get"]["responses"]["200"]["content"]["text/event-stream"]
+        ["schema"];
+    assert_eq!(events["required"], serde_json::json!(["event", "data"]));
+    let stream = get(&app, &format!("/jobs/{id}/events")).await.text();
+    assert!(stream.starts_with("event: end\ndata: {"), "{stream}");
+}
