@@ -313,7 +313,7 @@ mod tests {
         for (json, pointer) in [
             (r#"{"duration": 1, "output": {"fps": 1e9}, "bodies": [{"type": "chain"}]}"#, "/output/fps"),
             (
-                r#"{"duration": 1, "output": {"fps": 1e300, "fields": []}, "bodies": [{"type": "chain"}]}"#,
+                r#"{"duration": 1, "output": {"fps": 1e30, "fields": []}, "bodies": [{"type": "chain"}]}"#,
                 "/output/fps",
             ),
             (r#"{"duration": 1e9, "bodies": [{"type": "chain"}]}"#, "/duration"),
