@@ -73,17 +73,18 @@ fn other_bytes_are_refused_not_misread() {
     assert!(read_json(text.as_bytes()).is_err());
 }
 
-/// The issue's diverged chain: so heavy that its gravitational energy overflows to infinity.
-const OVERFLOWING: &str = r#"{"duration": 1, "integrator": "rk4", "bodies": [{"type": "chain", "mass": 1e308}],
-    "output": {"fields": ["positions", "energy"]}}"#;
+/// A chain thrown up by a step of 1e16 s: it diverges at the first step, leaving its first frame.
+const DIVERGING: &str = r#"{"duration": 1e17, "dt": 1e16, "gravity": [0, 1e6, 0], "error_estimate": "none",
+    "bodies": [{"type": "chain", "count": 3}], "output": {"fps": 1e-16, "fields": ["positions", "energy"]}}"#;
 
 #[test]
 fn a_number_that_is_not_finite_is_null_and_reads_back_as_nan() {
-    let mut recording = run(OVERFLOWING);
+    let mut recording = run(DIVERGING);
     assert_eq!(recording.stats.status.name(), "diverged");
-    let energy = &recording.frames.energy.as_ref().unwrap()[0];
-    assert_eq!(energy.gravitational, f64::INFINITY);
-    // Velocities, a stored statistic and a strain that are not finite, beside the energy.
+    // No scene within its ranges records a number that is not finite (energies are summed in
+    // f64 from bounded inputs, and the watch stops a run before a non-finite state is recorded),
+    // so they are put in: an energy, velocities, a stored statistic and a strain.
+    recording.frames.energy.as_mut().unwrap()[0].gravitational = f64::INFINITY;
     recording.frames.velocities = Some([f64::NAN, f64::INFINITY, 0.5].repeat(recording.particles).into());
     recording.frames.strain = Some(vec![f64::NEG_INFINITY; recording.springs]);
     recording.stats.max_strain = Some(f64::INFINITY);
@@ -91,7 +92,8 @@ fn a_number_that_is_not_finite_is_null_and_reads_back_as_nan() {
     let written = json(&recording);
     let value: serde_json::Value = serde_json::from_slice(&written).unwrap();
     let frame = &value["frames"][0];
-    assert_eq!(frame["energy"], serde_json::json!({"kinetic": 0.0, "gravitational": null, "spring": 0.0}));
+    assert_eq!(frame["energy"]["kinetic"], 0.0);
+    assert_eq!(frame["energy"]["gravitational"], serde_json::Value::Null);
     assert_eq!(
         frame["velocities"].as_array().unwrap()[0..3],
         [serde_json::Value::Null, serde_json::Value::Null, 0.5.into()]
