@@ -17,8 +17,12 @@
 //! cargo build --release && cargo run --release --example service_overhead [-- REPETITIONS]
 //! ```
 
-#[path = "support/serve.rs"]
+#[path = "../tests/deadline/mod.rs"]
+mod deadline;
+#[path = "../tests/serve/mod.rs"]
 mod serve;
+#[path = "support/serve.rs"]
+mod support;
 
 use std::error::Error;
 use std::path::Path;
@@ -27,7 +31,8 @@ use std::time::Instant;
 
 use serde_json::Value;
 
-use serve::{Server, drape_binary, median, min, peers_cloth};
+use serve::Server;
+use support::{drape_binary, median, min, peers_cloth};
 
 /// One timing: what the caller saw and what the run reported as its own wall time.
 struct Sample {
@@ -45,8 +50,8 @@ async fn main() -> Result<(), Box<dyn Error>> {
     std::fs::write(&scene_path, serde_json::to_vec_pretty(&scene)?)?;
     let body = std::fs::read(&scene_path)?;
 
-    let memory = Server::start(&binary, dir.path(), "memory", "memory.log", &[])?;
-    let sqlite = Server::start(&binary, dir.path(), "sqlite://drape.db", "sqlite.log", &[])?;
+    let memory = Server::launch(&binary, dir.path(), "memory", "127.0.0.1:0", &[], None);
+    let sqlite = Server::launch(&binary, dir.path(), "sqlite://drape.db", "127.0.0.1:0", &[], None);
     let client = reqwest::Client::new();
 
     let mut samples: [Vec<Sample>; 3] = Default::default();

@@ -18,15 +18,20 @@
 //! cargo build --release && cargo run --release --example sweep_throughput [-- ROUNDS [WORKERS]]
 //! ```
 
-#[path = "support/serve.rs"]
+#[path = "../tests/deadline/mod.rs"]
+mod deadline;
+#[path = "../tests/serve/mod.rs"]
 mod serve;
+#[path = "support/serve.rs"]
+mod support;
 
 use std::error::Error;
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 use serde_json::{Value, json};
 
-use serve::{Server, cpu_seconds, drape_binary, machine_seconds, median, min, peers_cloth};
+use serve::Server;
+use support::{cpu_seconds, drape_binary, machine_seconds, median, min, peers_cloth};
 
 const VARIANTS: usize = 64;
 const POLL: Duration = Duration::from_millis(50);
@@ -53,8 +58,8 @@ async fn main() -> Result<(), Box<dyn Error>> {
     }
     let binary = drape_binary()?;
     let dir = tempfile::tempdir()?;
-    let sqlite = Server::start(&binary, dir.path(), "sqlite://drape.db", "sqlite.log", &extra)?;
-    let memory = Server::start(&binary, dir.path(), "memory", "memory.log", &extra)?;
+    let sqlite = Server::launch(&binary, dir.path(), "sqlite://drape.db", "127.0.0.1:0", &extra, None);
+    let memory = Server::launch(&binary, dir.path(), "memory", "127.0.0.1:0", &extra, None);
     let client = reqwest::Client::new();
 
     let stiffnesses: Vec<f64> = (0..VARIANTS).map(|i| 2000.0 + 50.0 * i as f64).collect();

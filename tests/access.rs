@@ -1,6 +1,7 @@
 //! Bearer tokens and allowed `Host` names, through the router.
 
 mod common;
+mod deadline;
 
 use axum::body::Body;
 use axum::http::Request;

@@ -1,6 +1,7 @@
 //! Every endpoint through `app().oneshot(...)`, without a socket.
 
 mod common;
+mod deadline;
 
 use std::sync::Arc;
 
@@ -331,9 +332,7 @@ async fn requests_over_the_concurrency_limit_are_shed_with_503() {
         async move { post_json(&app, "/simulate", LONG).await }
     });
     // The /simulate request holds the only permit while its job runs.
-    while jobs.running() == 0 {
-        tokio::time::sleep(std::time::Duration::from_millis(5)).await;
-    }
+    common::until_running(&jobs).await;
     let shed = get(&app, "/healthz").await;
     assert_eq!(shed.status, 503);
     assert_eq!(shed.problem()["type"], "/problems/overloaded");

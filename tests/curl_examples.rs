@@ -2,11 +2,14 @@
 
 #![cfg(unix)]
 
-use std::io::{BufRead, BufReader};
+mod deadline;
+mod serve;
+
 use std::path::Path;
 use std::process::{Command, Output, Stdio};
 
 use serde_json::Value;
+use serve::Server;
 
 const SCENE: &str = r#"{"duration": 0.5, "dt": 0.01, "bodies": [{"type": "chain", "count": 4}],
                        "output": {"frames": "final"}}"#;
@@ -28,18 +31,10 @@ fn every_curl_script_works_against_drape_serve() {
     if Command::new("curl").arg("--version").stdout(Stdio::null()).status().is_err() {
         panic!("curl is needed to check examples/curl/");
     }
-    let mut server = Command::new(env!("CARGO_BIN_EXE_drape"))
-        .args(["serve", "--store", "memory", "--addr", "127.0.0.1:0", "--workers", "1"])
-        .env("RUST_LOG", "warn")
-        .stdout(Stdio::piped())
-        .stderr(Stdio::null())
-        .spawn()
-        .unwrap();
-    let mut line = String::new();
-    BufReader::new(server.stdout.take().unwrap()).read_line(&mut line).unwrap();
-    let base = line.trim().strip_prefix("drape listening on ").unwrap().to_string();
     let dir = std::env::temp_dir().join(format!("drape-curl-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
+    let server = Server::start(&dir, "memory", &["--workers", "1"]);
+    let base = server.base.clone();
     let scene = dir.join("scene.json");
     std::fs::write(&scene, SCENE).unwrap();
     let scene = scene.to_str().unwrap();
@@ -97,7 +92,6 @@ fn every_curl_script_works_against_drape_serve() {
     let cancelled = json(&script(&base, "cancel_sweep.sh", &[sweep_id]));
     assert_eq!(cancelled["complete"], true);
 
-    Command::new("kill").args(["-TERM", &server.id().to_string()]).status().unwrap();
-    assert!(server.wait().unwrap().success());
+    server.terminate();
     std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -2,6 +2,7 @@
 //! what `drape serve` says at start about who may reach it.
 
 mod common;
+mod deadline;
 mod serve;
 
 use std::io::Write;
@@ -126,13 +127,17 @@ async fn an_integral_float_is_an_integer_over_http_and_a_fraction_is_refused_at_
 async fn read_until_closed(stream: &mut TcpStream) -> Vec<u8> {
     let mut received = Vec::new();
     let mut buffer = [0u8; 4096];
-    loop {
-        match tokio::time::timeout(PATIENCE, stream.read(&mut buffer)).await {
-            Err(_) => panic!("the server kept the connection open; read {received:?}"),
-            Ok(Ok(0) | Err(_)) => return received,
-            Ok(Ok(n)) => received.extend_from_slice(&buffer[..n]),
+    let closed = tokio::time::timeout(PATIENCE, async {
+        loop {
+            match stream.read(&mut buffer).await {
+                Ok(0) | Err(_) => return,
+                Ok(n) => received.extend_from_slice(&buffer[..n]),
+            }
         }
-    }
+    })
+    .await;
+    assert!(closed.is_ok(), "the server kept the connection open; read {received:?}");
+    received
 }
 
 fn address(server: &Server) -> String {
@@ -203,7 +208,9 @@ async fn idle_connections_are_closed_after_the_idle_timeout() {
     // Both idle connections are closed; the event stream, open as long, still carries events.
     let mut buffer = vec![0u8; 4096];
     let mut streamed = String::new();
+    let started = Instant::now();
     while !streamed.contains("event: progress") {
+        assert!(started.elapsed() < PATIENCE, "no progress event within {PATIENCE:?}: {streamed}");
         let n = tokio::time::timeout(PATIENCE, events.read(&mut buffer)).await.unwrap().unwrap();
         assert!(n > 0, "the event stream was closed: {streamed}");
         streamed.push_str(&String::from_utf8_lossy(&buffer[..n]));
@@ -223,7 +230,7 @@ async fn a_stalled_connection_does_not_hold_shutdown_open() {
     stalled.write_all(b"POST /jobs HTTP/1.1\r\nHost: loc").await.unwrap();
     let mut fresh = TcpStream::connect(&addr).await.unwrap();
     assert!(healthz_over(&mut fresh).await.starts_with("HTTP/1.1 200 OK"));
-    tokio::task::spawn_blocking(move || server.terminate_within_patience()).await.unwrap();
+    tokio::task::spawn_blocking(move || server.terminate()).await.unwrap();
     assert_eq!(read_until_closed(&mut stalled).await, b"");
 }
 

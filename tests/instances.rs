@@ -4,6 +4,7 @@
 
 #![cfg(unix)]
 
+mod deadline;
 mod pg;
 mod serve;
 

@@ -2,6 +2,7 @@
 //! health check and a job that succeeds: bad input never harms the server.
 
 mod common;
+mod deadline;
 
 use axum::body::Body;
 use axum::http::Request;

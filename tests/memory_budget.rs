@@ -2,6 +2,7 @@
 //! (`VmHWM` in `/proc/PID/status`) stays under the budget; what would not fit is refused before
 //! it runs.
 
+mod deadline;
 mod serve;
 
 use serde_json::{Value, json};

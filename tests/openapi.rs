@@ -1,6 +1,7 @@
 //! The served description is `openapi/openapi.yaml`, and it and the router list the same routes.
 
 mod common;
+mod deadline;
 
 use std::collections::BTreeSet;
 

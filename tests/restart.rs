@@ -4,6 +4,7 @@
 
 #![cfg(unix)]
 
+mod deadline;
 mod serve;
 
 use serde::de::IgnoredAny;

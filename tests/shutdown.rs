@@ -4,11 +4,14 @@
 
 #![cfg(unix)]
 
-use std::io::{BufRead, BufReader};
-use std::process::{Child, Command, Stdio};
+mod deadline;
+mod serve;
+
 use std::time::Duration;
 
+use deadline::{PATIENCE, within};
 use serde_json::Value;
+use serve::{Server, wait_for};
 
 const LONG: &str = r#"{"duration": 1000, "dt": 0.001, "gravity": [0, 0, 0],
                       "bodies": [{"type": "chain", "count": 10000}],
@@ -16,39 +19,9 @@ const LONG: &str = r#"{"duration": 1000, "dt": 0.001, "gravity": [0, 0, 0],
 const SHORT: &str = r#"{"duration": 20, "dt": 0.001, "gravity": [0, 0, 0], "bodies": [{"type": "chain", "count": 1000}],
                        "output": {"frames": "final"}}"#;
 
-/// Starts `drape serve` on a free port and returns it with its base URL.
-fn serve(grace: &str) -> (Child, String) {
-    let mut child = Command::new(env!("CARGO_BIN_EXE_drape"))
-        .args([
-            "serve",
-            "--store",
-            "memory",
-            "--addr",
-            "127.0.0.1:0",
-            "--workers",
-            "1",
-            "--shutdown-grace",
-            grace,
-        ])
-        .env("RUST_LOG", "warn")
-        .stdout(Stdio::piped())
-        .stderr(Stdio::null())
-        .spawn()
-        .unwrap();
-    let mut line = String::new();
-    BufReader::new(child.stdout.take().unwrap()).read_line(&mut line).unwrap();
-    let base = line.trim().strip_prefix("drape listening on ").expect("the address line").to_string();
-    (child, base)
-}
-
-fn sigterm(child: &Child) {
-    let status = Command::new("kill").args(["-TERM", &child.id().to_string()]).status().unwrap();
-    assert!(status.success());
-}
-
-/// Waits for the process to exit; a hang shows as the test never ending, not as a time limit.
-fn wait(mut child: Child) -> std::process::ExitStatus {
-    child.wait().unwrap()
+/// Starts `drape serve` on the memory store with one worker and the given shutdown grace (s).
+fn serve(dir: &tempfile::TempDir, grace: &str) -> Server {
+    Server::start(dir.path(), "memory", &["--workers", "1", "--shutdown-grace", grace])
 }
 
 async fn submit_and_wait_running(client: &reqwest::Client, base: &str, scene: &str) -> String {
@@ -63,18 +36,13 @@ async fn submit_and_wait_running(client: &reqwest::Client, base: &str, scene: &s
         .await
         .unwrap();
     let id = job["id"].as_str().unwrap().to_string();
-    loop {
-        let job: Value = client.get(format!("{base}/jobs/{id}")).send().await.unwrap().json().await.unwrap();
-        if job["status"] == "running" {
-            return id;
-        }
-        tokio::time::sleep(Duration::from_millis(5)).await;
-    }
+    wait_for(client, base, &id, |job| job["status"] == "running").await;
+    id
 }
 
 /// The `end` event of a job's stream.
 async fn end_event(response: reqwest::Response) -> Value {
-    let text = response.text().await.unwrap();
+    let text = within("the end of the event stream", response.text()).await.unwrap();
     let data = text
         .split("\n\n")
         .find_map(|block| block.strip_prefix("event: end\ndata: "))
@@ -84,7 +52,9 @@ async fn end_event(response: reqwest::Response) -> Value {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn sigterm_cancels_a_job_still_running_after_the_grace_period_and_exits_0() {
-    let (child, base) = serve("0.1");
+    let dir = tempfile::tempdir().unwrap();
+    let server = serve(&dir, "0.1");
+    let base = server.base.clone();
     let client = reqwest::Client::new();
     let id = submit_and_wait_running(&client, &base, LONG).await;
     let queued: Value = client
@@ -102,7 +72,7 @@ async fn sigterm_cancels_a_job_still_running_after_the_grace_period_and_exits_0(
     let queued_stream =
         client.get(format!("{base}/jobs/{}/events", queued["id"].as_str().unwrap())).send().await.unwrap();
 
-    sigterm(&child);
+    server.sigterm();
     let end = end_event(stream).await;
     assert_eq!(end["status"], "cancelled");
     assert_eq!(end["message"], "the server shut down before the job finished");
@@ -110,21 +80,23 @@ async fn sigterm_cancels_a_job_still_running_after_the_grace_period_and_exits_0(
     assert_eq!(queued_end["status"], "cancelled");
     assert_eq!(queued_end["progress"]["step"], 0, "a queued job is dropped, not run");
 
-    assert!(wait(child).success());
+    assert!(server.exit_within(PATIENCE).0.success(), "drape serve exits 0 on SIGTERM");
     assert!(client.get(format!("{base}/healthz")).send().await.is_err(), "no longer accepting");
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn sigterm_lets_a_running_job_finish_within_the_grace_period() {
-    let (child, base) = serve("600");
+    let dir = tempfile::tempdir().unwrap();
+    let server = serve(&dir, "600");
+    let base = server.base.clone();
     let client = reqwest::Client::new();
     let id = submit_and_wait_running(&client, &base, SHORT).await;
     let stream = client.get(format!("{base}/jobs/{id}/events")).send().await.unwrap();
-    sigterm(&child);
+    server.sigterm();
     let end = end_event(stream).await;
     assert_eq!(end["status"], "succeeded");
     assert_eq!(end["progress"]["step"], 20_000);
-    assert!(wait(child).success());
+    assert!(server.exit_within(PATIENCE).0.success(), "drape serve exits 0 on SIGTERM");
 }
 
 /// A job system whose one job blocks its worker thread for an hour, far past any test.
@@ -142,9 +114,8 @@ async fn stuck(store: std::sync::Arc<dyn drape::jobs::JobStore>) -> (drape::jobs
     let scene = drape::scene::Scene::from_value(document.clone()).unwrap();
     let submission = Submission { scene, document, fingerprint: 0, idempotency_key: None, max_work: None };
     let id = jobs.submit(submission).await.unwrap().job.id;
-    while jobs.running() == 0 {
-        tokio::time::sleep(Duration::from_millis(5)).await;
-    }
+    deadline::poll_until_some("the stuck job to be running", || async { (jobs.running() > 0).then_some(()) })
+        .await;
     (jobs, id)
 }
 

@@ -1,6 +1,7 @@
 //! The service over a real socket with a real HTTP client.
 
 mod common;
+mod deadline;
 mod serve;
 
 use std::net::SocketAddr;
@@ -8,6 +9,7 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use common::{LONG, TINY, jobs_config};
+use deadline::{PATIENCE, within};
 use drape::api::{ApiConfig, AppState};
 use drape::jobs::{Jobs, JobsConfig, MemoryStore};
 use futures_util::StreamExt;
@@ -33,13 +35,7 @@ async fn start(jobs: JobsConfig) -> (String, tokio::sync::oneshot::Sender<()>) {
 }
 
 async fn wait_for_status(client: &reqwest::Client, base: &str, id: &str, status: &str) {
-    loop {
-        let job: Value = client.get(format!("{base}/jobs/{id}")).send().await.unwrap().json().await.unwrap();
-        if job["status"] == status {
-            return;
-        }
-        tokio::time::sleep(Duration::from_millis(5)).await;
-    }
+    serve::wait_for(client, base, id, |job| job["status"] == status).await;
 }
 
 /// Reads server-sent events as (name, data) pairs.
@@ -56,8 +52,12 @@ impl Events {
         Self { stream: Box::pin(response.bytes_stream()), buffer: String::new() }
     }
 
-    /// The next event, or `None` when the stream ends.
+    /// The next event, or `None` when the stream ends; within [`PATIENCE`].
     async fn next(&mut self) -> Option<(String, Value)> {
+        within("the next server-sent event", self.next_unbounded()).await
+    }
+
+    async fn next_unbounded(&mut self) -> Option<(String, Value)> {
         loop {
             if let Some(end) = self.buffer.find("\n\n") {
                 let block: String = self.buffer.drain(..end + 2).collect();
@@ -95,10 +95,14 @@ async fn submit_follow_events_and_fetch_the_result() {
     assert_eq!(client.delete(format!("{base}/jobs/{blocker}")).send().await.unwrap().status(), 202);
 
     let mut last_step = 0;
-    let end = loop {
+    let mut end = None;
+    let started = std::time::Instant::now();
+    while end.is_none() {
+        assert!(started.elapsed() < PATIENCE, "no end event within {PATIENCE:?}");
         let (name, data) = events.next().await.expect("the stream ends with an end event");
         if name == "end" {
-            break data;
+            end = Some(data);
+            continue;
         }
         assert_eq!(name, "progress");
         let step = data["step"].as_u64().unwrap();
@@ -107,7 +111,8 @@ async fn submit_follow_events_and_fetch_the_result() {
         assert!((fraction - step as f64 / 20_000.0).abs() < 1e-12 && fraction <= 1.0);
         assert!((data["t"].as_f64().unwrap() - step as f64 * 0.001).abs() < 1e-9);
         last_step = step;
-    };
+    }
+    let end = end.unwrap();
     assert!(events.next().await.is_none(), "nothing after the end event");
     assert_eq!(end["status"], "succeeded");
     assert_eq!(end["progress"]["step"], 20_000);
@@ -126,21 +131,27 @@ async fn a_long_job_is_cancelled_and_its_stream_ends() {
     let client = reqwest::Client::new();
     let id = submit(&client, &base, LONG).await;
     let mut events = Events::open(&client, format!("{base}/jobs/{id}/events")).await;
-    loop {
-        let (name, data) = events.next().await.unwrap();
-        assert_eq!(name, "progress");
-        if data["step"].as_u64().unwrap() > 0 {
-            break;
+    within("a progress event past step 0", async {
+        loop {
+            let (name, data) = events.next().await.unwrap();
+            assert_eq!(name, "progress");
+            if data["step"].as_u64().unwrap() > 0 {
+                break;
+            }
         }
-    }
+    })
+    .await;
     let response = client.delete(format!("{base}/jobs/{id}")).send().await.unwrap();
     assert_eq!(response.status(), 202);
-    let end = loop {
-        let (name, data) = events.next().await.unwrap();
-        if name == "end" {
-            break data;
+    let end = within("the end event", async {
+        loop {
+            let (name, data) = events.next().await.unwrap();
+            if name == "end" {
+                break data;
+            }
         }
-    };
+    })
+    .await;
     assert_eq!(end["status"], "cancelled");
     assert_eq!(end["message"], "cancelled by request");
     assert!(end["progress"]["step"].as_u64().unwrap() < 1_000_000);

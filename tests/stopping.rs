@@ -5,6 +5,7 @@
 
 #![cfg(unix)]
 
+mod deadline;
 mod serve;
 
 use std::time::{Duration, Instant};

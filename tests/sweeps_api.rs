@@ -2,6 +2,7 @@
 //! and plot; bad sweeps are refused before any job starts; a sweep can be cancelled.
 
 mod common;
+mod deadline;
 
 use std::time::Duration;
 

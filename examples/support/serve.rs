@@ -1,11 +1,11 @@
-//! What the service measurements share: the `drape` binary they run, a `drape serve` child on a
-//! free port, the peers' hanging cloth as a scene, and medians.
+//! What the service measurements share besides the launcher: the `drape` binary they run, the
+//! peers' hanging cloth as a scene, medians and CPU times. The `drape serve` child they measure
+//! is started by the tests' launcher, `tests/serve/mod.rs`, which they include as well.
 
 #![allow(dead_code)]
 
-use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
+use std::process::Command;
 
 use serde_json::{Value, json};
 
@@ -36,49 +36,6 @@ pub fn drape_binary() -> Result<PathBuf, String> {
 
 fn modified(path: &Path) -> Option<std::time::SystemTime> {
     std::fs::metadata(path).and_then(|m| m.modified()).ok()
-}
-
-/// A running `drape serve`; killed when dropped.
-pub struct Server {
-    child: Child,
-    /// Its base URL, e.g. `http://127.0.0.1:40123`.
-    pub base: String,
-}
-
-impl Server {
-    /// Starts `drape serve --store STORE --addr 127.0.0.1:0 ARGS` in `dir`, its log in `dir/LOG`.
-    pub fn start(binary: &Path, dir: &Path, store: &str, log: &str, args: &[&str]) -> Result<Self, String> {
-        let log = std::fs::File::create(dir.join(log)).map_err(|e| e.to_string())?;
-        let mut child = Command::new(binary)
-            .current_dir(dir)
-            .args(["serve", "--store", store, "--addr", "127.0.0.1:0"])
-            .args(args)
-            .stdout(Stdio::piped())
-            .stderr(log)
-            .spawn()
-            .map_err(|e| format!("cannot start {}: {e}", binary.display()))?;
-        let mut line = String::new();
-        let stdout = child.stdout.take().ok_or("no standard output")?;
-        BufReader::new(stdout).read_line(&mut line).map_err(|e| e.to_string())?;
-        let base = line
-            .trim()
-            .strip_prefix("drape listening on ")
-            .ok_or_else(|| format!("drape serve did not start: {line:?}"))?
-            .to_string();
-        Ok(Self { child, base })
-    }
-
-    /// The process id, for `/proc/PID/stat`.
-    pub fn pid(&self) -> u32 {
-        self.child.id()
-    }
-}
-
-impl Drop for Server {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
-    }
 }
 
 /// The peers' hanging cloth (`docs/performance.md`): `n` × `n` particles on 1 m², 1 kg,

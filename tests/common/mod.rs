@@ -1,6 +1,10 @@
 //! Helpers shared by the HTTP tests: an app over a fresh job system, requests, and tiny scenes.
+//! Its polls have the deadlines of `tests/deadline/mod.rs`, which a crate using this module
+//! declares as `mod deadline` beside it.
 
 #![allow(dead_code)]
+
+use crate::deadline;
 
 use std::sync::Arc;
 
@@ -93,15 +97,18 @@ pub async fn post_json(app: &Router, path: &str, body: &str) -> Answer {
     send(app, request).await
 }
 
-/// Polls `GET /jobs/{id}` until `done` holds for the job.
+/// Polls `GET /jobs/{id}` until `done` holds for the job, within [`deadline::PATIENCE`].
 pub async fn poll_until(app: &Router, id: &str, done: impl Fn(&Value) -> bool) -> Value {
-    loop {
+    deadline::poll_until_some(&format!("job {id} to get there"), || async {
         let job = get(app, &format!("/jobs/{id}")).await.json();
-        if done(&job) {
-            return job;
-        }
-        tokio::time::sleep(std::time::Duration::from_millis(5)).await;
-    }
+        done(&job).then_some(job)
+    })
+    .await
+}
+
+/// Waits, within [`deadline::PATIENCE`], until the job system runs a job.
+pub async fn until_running(jobs: &Jobs) {
+    deadline::poll_until_some("a job to be running", || async { (jobs.running() > 0).then_some(()) }).await;
 }
 
 pub fn is_final(job: &Value) -> bool {

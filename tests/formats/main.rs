@@ -4,6 +4,8 @@
 #[path = "../common/mod.rs"]
 mod api;
 mod common;
+#[path = "../deadline/mod.rs"]
+mod deadline;
 mod glb;
 mod non_finite;
 mod npy;

@@ -1,23 +1,39 @@
-//! `drape serve` as a child process: start it on a store, talk to it, kill it with SIGKILL, and
-//! read its log to count how often each job was started.
+//! The one launcher of `drape serve` as a child process, for the integration tests and the
+//! service measurements in `examples/` (which include this file by `#[path]`): start it on a
+//! store, read the address it prints, talk to it, stop it with SIGTERM or kill it with SIGKILL,
+//! and read its log, for instance to count how often each job was started.
+//!
+//! Every wait here has a deadline ([`PATIENCE`]), so a server that never starts, never answers
+//! or never exits fails the test instead of hanging it. The deadlines come from
+//! `tests/deadline/mod.rs`, which a crate using this module declares as `mod deadline` beside it.
 
 #![allow(dead_code)]
 
+use crate::deadline;
+
 use std::io::{BufRead, BufReader};
 use std::path::Path;
-use std::process::{Child, Command, Stdio};
+use std::process::{Child, Command, ExitStatus, Stdio};
 use std::sync::{Arc, Mutex};
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use serde_json::Value;
 
-/// The longest any wait in these tests may take before the test fails.
-pub const PATIENCE: Duration = Duration::from_secs(120);
+pub use deadline::PATIENCE;
 
-/// A running `drape serve`.
+/// The `drape` binary Cargo built for this integration test. Examples have no such variable and
+/// pass their binary to [`Server::launch`].
+fn test_binary() -> &'static Path {
+    match option_env!("CARGO_BIN_EXE_drape") {
+        Some(path) => Path::new(path),
+        None => panic!("only integration tests are given CARGO_BIN_EXE_drape"),
+    }
+}
+
+/// A running `drape serve`, killed when dropped.
 pub struct Server {
     child: Child,
-    /// Its base URL.
+    /// Its base URL, e.g. `http://127.0.0.1:40123`.
     pub base: String,
     log: Arc<Mutex<Vec<String>>>,
 }
@@ -28,17 +44,33 @@ impl Server {
         Self::start_on(dir, store, "127.0.0.1:0", args)
     }
 
-    /// Starts `drape serve` in `dir` on `addr` with `args` after the store.
+    /// Starts `drape serve` in `dir` on `addr` with `args` after the store, logging at `info`.
     pub fn start_on(dir: &Path, store: &str, addr: &str, args: &[&str]) -> Self {
-        let mut child = Command::new(env!("CARGO_BIN_EXE_drape"))
+        Self::launch(test_binary(), dir, store, addr, args, Some("info"))
+    }
+
+    /// Starts `binary serve --store STORE --addr ADDR ARGS` in `dir`, with `RUST_LOG` set to
+    /// `log_filter` (or left as the environment has it), and waits within [`PATIENCE`] for the
+    /// address it listens on. Its standard error is kept as [`Server::log`].
+    pub fn launch(
+        binary: &Path,
+        dir: &Path,
+        store: &str,
+        addr: &str,
+        args: &[&str],
+        log_filter: Option<&str>,
+    ) -> Self {
+        let mut command = Command::new(binary);
+        command
             .current_dir(dir)
             .args(["serve", "--store", store, "--addr", addr])
             .args(args)
-            .env("RUST_LOG", "info")
             .stdout(Stdio::piped())
-            .stderr(Stdio::piped())
-            .spawn()
-            .unwrap();
+            .stderr(Stdio::piped());
+        if let Some(filter) = log_filter {
+            command.env("RUST_LOG", filter);
+        }
+        let mut child = command.spawn().unwrap_or_else(|e| panic!("cannot start {}: {e}", binary.display()));
         let log = Arc::new(Mutex::new(Vec::new()));
         let stderr = BufReader::new(child.stderr.take().unwrap());
         let lines = Arc::clone(&log);
@@ -47,11 +79,22 @@ impl Server {
                 lines.lock().unwrap().push(line);
             }
         });
-        let mut line = String::new();
-        BufReader::new(child.stdout.take().unwrap()).read_line(&mut line).unwrap();
+        // The address line is read on a thread of its own so that waiting for it has a deadline.
+        let stdout = child.stdout.take().unwrap();
+        let (sender, first_line) = std::sync::mpsc::channel();
+        std::thread::spawn(move || {
+            let mut line = String::new();
+            let _ = BufReader::new(stdout).read_line(&mut line);
+            let _ = sender.send(line);
+        });
+        let line = first_line.recv_timeout(PATIENCE).unwrap_or_default();
         let base = match line.trim().strip_prefix("drape listening on ") {
             Some(base) => base.to_string(),
-            None => panic!("drape serve did not start: {:?}\n{}", line, log.lock().unwrap().join("\n")),
+            None => panic!(
+                "drape serve did not print its address within {PATIENCE:?}: {:?}\n{}",
+                line,
+                log.lock().unwrap().join("\n")
+            ),
         };
         Self { child, base, log }
     }
@@ -67,27 +110,37 @@ impl Server {
         self.child.wait().unwrap();
     }
 
-    /// Stops the process with SIGTERM and checks that it exits 0.
-    pub fn terminate(mut self) {
+    /// Sends SIGTERM, asking for a graceful shutdown, without waiting for the exit.
+    pub fn sigterm(&self) {
         let pid = self.child.id().to_string();
         assert!(Command::new("kill").args(["-TERM", &pid]).status().unwrap().success());
-        assert!(self.child.wait().unwrap().success(), "drape serve exits 0 on SIGTERM");
+    }
+
+    /// Waits for the process to exit, within `deadline`; returns its status and how long the
+    /// wait took.
+    pub fn exit_within(mut self, deadline: Duration) -> (ExitStatus, Duration) {
+        let since = Instant::now();
+        loop {
+            if let Some(status) = self.child.try_wait().unwrap() {
+                return (status, since.elapsed());
+            }
+            assert!(since.elapsed() < deadline, "drape serve did not exit within {deadline:?}");
+            std::thread::sleep(Duration::from_millis(10));
+        }
+    }
+
+    /// Stops the process with SIGTERM and checks that it exits 0 within [`PATIENCE`].
+    pub fn terminate(self) {
+        self.terminate_within(PATIENCE);
     }
 
     /// Stops the process with SIGTERM, checks that it exits 0 within `deadline`, and returns how
     /// long it took.
-    pub fn terminate_within(mut self, deadline: Duration) -> Duration {
-        let pid = self.child.id().to_string();
-        let sent = std::time::Instant::now();
-        assert!(Command::new("kill").args(["-TERM", &pid]).status().unwrap().success());
-        loop {
-            if let Some(status) = self.child.try_wait().unwrap() {
-                assert!(status.success(), "drape serve exits 0 on SIGTERM");
-                return sent.elapsed();
-            }
-            assert!(sent.elapsed() < deadline, "drape serve did not exit within {deadline:?} of SIGTERM");
-            std::thread::sleep(Duration::from_millis(10));
-        }
+    pub fn terminate_within(self, deadline: Duration) -> Duration {
+        self.sigterm();
+        let (status, took) = self.exit_within(deadline);
+        assert!(status.success(), "drape serve exits 0 on SIGTERM, not {status}");
+        took
     }
 
     /// The lines the process logged so far.
@@ -98,20 +151,10 @@ impl Server {
     /// Waits, within [`PATIENCE`], for a line of the log that contains `text`, and returns the
     /// whole log up to then.
     pub fn wait_for_log(&self, text: &str) -> Vec<String> {
-        let deadline = std::time::Instant::now() + PATIENCE;
-        loop {
-            let log = self.log.lock().unwrap().clone();
-            if log.iter().any(|line| line.contains(text)) {
-                return log;
-            }
-            assert!(std::time::Instant::now() < deadline, "no `{text}` in the log:\n{}", log.join("\n"));
-            std::thread::sleep(Duration::from_millis(20));
-        }
-    }
-
-    /// Stops the process with SIGTERM and checks that it exits 0 within [`PATIENCE`].
-    pub fn terminate_within_patience(self) {
-        self.terminate_within(PATIENCE);
+        deadline::wait_until(&format!("`{text}` in the log of drape serve"), || {
+            let log = self.log();
+            log.iter().any(|line| line.contains(text)).then_some(log)
+        })
     }
 
     /// How many times each job was started here, from the `job started` lines of the log.
@@ -159,17 +202,11 @@ pub async fn wait_for(
     id: &str,
     done: impl Fn(&Value) -> bool,
 ) -> Value {
-    tokio::time::timeout(PATIENCE, async {
-        loop {
-            let job = job(client, base, id).await;
-            if done(&job) {
-                return job;
-            }
-            tokio::time::sleep(Duration::from_millis(20)).await;
-        }
+    deadline::poll_until_some(&format!("job {id} to get there"), || async {
+        let job = job(client, base, id).await;
+        done(&job).then_some(job)
     })
     .await
-    .unwrap_or_else(|_| panic!("job {id} did not get there in time"))
 }
 
 /// Whether a job has ended.
