@@ -48,8 +48,9 @@ async fn runs_on(id: &str, one: &Server, two: &Server) -> bool {
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+#[ignore = "needs PostgreSQL on 127.0.0.1:5432 (or DRAPE_TEST_POSTGRES); see README.md, Run the tests"]
 async fn two_instances_share_one_postgres_queue() {
-    let Some(database) = pg::TestDatabase::create().await else { return };
+    let database = pg::TestDatabase::create().await;
     let dir = tempfile::tempdir().unwrap();
     // A one-second lease, so the survivor takes over a dead instance's job quickly.
     let args = ["--workers", "2", "--lease", "1", "--queue-capacity", "100"];

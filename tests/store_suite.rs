@@ -26,20 +26,20 @@ struct Harness {
     _database: Option<pg::TestDatabase>,
 }
 
-async fn memory() -> Option<Harness> {
-    Some(Harness { store: Arc::new(MemoryStore::new()), _dir: None, _database: None })
+async fn memory() -> Harness {
+    Harness { store: Arc::new(MemoryStore::new()), _dir: None, _database: None }
 }
 
-async fn sqlite() -> Option<Harness> {
+async fn sqlite() -> Harness {
     let dir = tempfile::tempdir().unwrap();
     let store = SqliteStore::open(&dir.path().join("drape.db")).await.unwrap();
-    Some(Harness { store: Arc::new(store), _dir: Some(dir), _database: None })
+    Harness { store: Arc::new(store), _dir: Some(dir), _database: None }
 }
 
-async fn postgres() -> Option<Harness> {
-    let database = pg::TestDatabase::create().await?;
+async fn postgres() -> Harness {
+    let database = pg::TestDatabase::create().await;
     let store = PostgresStore::open(&database.url, 8).await.unwrap();
-    Some(Harness { store: Arc::new(store), _dir: None, _database: Some(database) })
+    Harness { store: Arc::new(store), _dir: None, _database: Some(database) }
 }
 
 const T0: u64 = 1_700_000_000_000;
@@ -415,25 +415,29 @@ async fn a_queued_job_wakes_an_idle_worker(store: Arc<dyn JobStore>) {
     jobs.shutdown(Duration::ZERO).await;
 }
 
+/// A module named for the backend with one test per suite function, each carrying the
+/// attributes in brackets (for PostgreSQL, an `ignore` with what it needs).
 macro_rules! suite {
-    ($backend:ident: $($test:ident),* $(,)?) => {
+    ($backend:ident $attributes:tt: $($test:ident),* $(,)?) => {
         mod $backend {
-            $(
-                #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-                async fn $test() {
-                    let Some(harness) = super::$backend().await else { return };
-                    super::$test(std::sync::Arc::clone(&harness.store)).await;
-                }
-            )*
+            $(suite!(@test $backend $test $attributes);)*
+        }
+    };
+    (@test $backend:ident $test:ident [$(#[$attribute:meta])*]) => {
+        $(#[$attribute])*
+        #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+        async fn $test() {
+            let harness = super::$backend().await;
+            super::$test(std::sync::Arc::clone(&harness.store)).await;
         }
     };
 }
 
 macro_rules! every_backend {
     ($($test:ident),* $(,)?) => {
-        suite!(memory: $($test),*);
-        suite!(sqlite: $($test),*);
-        suite!(postgres: $($test),*);
+        suite!(memory []: $($test),*);
+        suite!(sqlite []: $($test),*);
+        suite!(postgres [#[ignore = "needs PostgreSQL on 127.0.0.1:5432 (or DRAPE_TEST_POSTGRES); see README.md, Run the tests"]]: $($test),*);
     };
 }
 
@@ -476,8 +480,9 @@ async fn a_sqlite_store_keeps_its_jobs_across_a_reopen_and_reruns_the_one_that_w
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+#[ignore = "needs PostgreSQL on 127.0.0.1:5432 (or DRAPE_TEST_POSTGRES); see README.md, Run the tests"]
 async fn postgres_instances_share_one_queue_and_one_key_space() {
-    let Some(database) = pg::TestDatabase::create().await else { return };
+    let database = pg::TestDatabase::create().await;
     let (one, two) = (
         PostgresStore::open(&database.url, 4).await.unwrap(),
         PostgresStore::open(&database.url, 4).await.unwrap(),

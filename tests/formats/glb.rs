@@ -7,7 +7,7 @@ use gltf::animation::Interpolation;
 use gltf::animation::util::ReadOutputs;
 use gltf::mesh::Mode;
 
-use crate::common::{Run, mixed_scene, numbers, reader_available, repo, scratch_dir};
+use crate::common::{INSTALL_NODE_READERS, Run, mixed_scene, numbers, repo, require_node, scratch_dir};
 
 /// `x` rounded to `f32` as the glTF holds it: exact for an `f32` run.
 fn as_f32(x: f64) -> f32 {
@@ -144,10 +144,9 @@ fn gltf_crate_reads_back_a_final_frame_without_animation() {
 }
 
 #[test]
+#[ignore = "needs node and .ci/node (npm ci --prefix .ci/node)"]
 fn khronos_validator_finds_no_error_in_static_and_animated_files() {
-    if !reader_available("node", "node", &["--version"]) {
-        return;
-    }
+    require_node();
     let dir = scratch_dir("validator");
     let files = [
         ("static.glb", mixed_scene("f64", "final", &["positions"])),
@@ -171,19 +170,15 @@ fn khronos_validator_finds_no_error_in_static_and_animated_files() {
         Some(0) => {
             assert_eq!(report.matches(": 0 errors").count(), files.len(), "{report}");
         }
-        Some(2) if std::env::var("CI").is_ok_and(|v| v == "true") => {
-            panic!("gltf-validator is needed under CI: npm ci --prefix .ci/node")
-        }
-        Some(2) => eprintln!("skipping: gltf-validator is not installed"),
+        Some(2) => panic!("gltf-validator is not installed: {INSTALL_NODE_READERS}"),
         _ => panic!("the validator found errors:\n{report}"),
     }
 }
 
 #[test]
+#[ignore = "needs node and .ci/node (npm ci --prefix .ci/node)"]
 fn three_js_plays_each_frame_as_its_own_morph_target() {
-    if !reader_available("node", "node", &["--version"]) {
-        return;
-    }
+    require_node();
     let dir = scratch_dir("threejs");
     for (name, scene) in [
         ("f32", mixed_scene("f32", "all", &["positions"])),
@@ -203,10 +198,7 @@ fn three_js_plays_each_frame_as_its_own_morph_target() {
         println!("{stdout}{stderr}");
         match output.status.code() {
             Some(0) => assert!(stdout.contains(&format!("played {} frames", run.frames().len())), "{stdout}"),
-            Some(2) if std::env::var("CI").is_ok_and(|v| v == "true") => {
-                panic!("three.js is needed under CI: npm ci --prefix .ci/node")
-            }
-            Some(2) => return eprintln!("skipping: three.js is not installed"),
+            Some(2) => panic!("three.js is not installed: {INSTALL_NODE_READERS}"),
             _ => panic!("three.js does not play the GLB as recorded ({name}):\n{stdout}{stderr}"),
         }
     }

@@ -6,6 +6,10 @@
 //! field, and a run whose state stops being finite ends as diverged before the frame is recorded.
 //! The encoders still carry them as their readers expect, so these tests put them into a real
 //! run's recording and encode that.
+//!
+//! The scenarios read back by external readers run twice: by the Rust crates alone (always), and
+//! also by NumPy and the Khronos glTF-Validator (ignored unless asked for, since those need
+//! Python and node).
 
 use std::path::Path;
 use std::process::Command;
@@ -16,7 +20,17 @@ use drape::run::{Recording, Samples};
 use serde_json::{Value, json};
 
 use crate::api::{jobs_config, post_json, test_app};
-use crate::common::{Run, reader_available, repo, scratch_dir};
+use crate::common::{INSTALL_NODE_READERS, Run, repo, require_node, require_numpy, scratch_dir};
+
+/// Which readers a scenario's results are read back by.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Readers {
+    /// The Rust crates (gltf, tobj) and this file's own decoding.
+    Crates,
+    /// Those, and NumPy and the Khronos glTF-Validator where the scenario uses them, which must
+    /// be installed.
+    CratesNumpyAndValidator,
+}
 
 /// The heavy chain of the reliability report (1e308 kg) and a chain flying at 1e39 m/s: both
 /// overflowed once; both are now refused where they are written.
@@ -63,34 +77,35 @@ fn positions_mut(recording: &mut Recording) -> &mut Vec<f64> {
     positions
 }
 
-/// Runs a Python snippet over files with NumPy; false when NumPy is missing (outside CI).
-fn numpy(script: &str, files: &[&Path]) -> bool {
-    if !reader_available("NumPy", "python3", &["-c", "import numpy"]) {
-        return false;
+/// Runs a Python snippet over files with NumPy, if `readers` include it.
+fn numpy(readers: Readers, script: &str, files: &[&Path]) {
+    if readers == Readers::Crates {
+        return;
     }
+    require_numpy();
     let output = Command::new("python3").arg("-c").arg(script).args(files).output().unwrap();
     let (stdout, stderr) = (String::from_utf8_lossy(&output.stdout), String::from_utf8_lossy(&output.stderr));
     assert!(output.status.success(), "NumPy disagrees:\n{stdout}\n{stderr}");
     assert!(stdout.contains("numpy agrees"), "{stdout}");
-    true
 }
 
-/// Checks GLB files with the Khronos glTF-Validator: every file without an error.
-fn validate_gltf(paths: &[&Path]) {
-    let output =
-        Command::new("node").arg(repo().join("tests/support/validate_gltf.cjs")).args(paths).output();
-    let Ok(output) = output else {
-        assert!(!std::env::var("CI").is_ok_and(|v| v == "true"), "node is needed under CI");
-        return eprintln!("skipping: node is not installed");
-    };
+/// Checks GLB files with the Khronos glTF-Validator, if `readers` include it: every file without
+/// an error.
+fn validate_gltf(readers: Readers, paths: &[&Path]) {
+    if readers == Readers::Crates {
+        return;
+    }
+    require_node();
+    let output = Command::new("node")
+        .arg(repo().join("tests/support/validate_gltf.cjs"))
+        .args(paths)
+        .output()
+        .unwrap();
     let report = String::from_utf8_lossy(&output.stdout);
     println!("{report}{}", String::from_utf8_lossy(&output.stderr));
     match output.status.code() {
         Some(0) => assert_eq!(report.matches(": 0 errors").count(), paths.len(), "{report}"),
-        Some(2) if std::env::var("CI").is_ok_and(|v| v == "true") => {
-            panic!("gltf-validator is needed under CI: npm ci --prefix .ci/node")
-        }
-        Some(2) => eprintln!("skipping: gltf-validator is not installed"),
+        Some(2) => panic!("gltf-validator is not installed: {INSTALL_NODE_READERS}"),
         _ => panic!("the validator found errors:\n{report}"),
     }
 }
@@ -108,7 +123,17 @@ fn f32s(bytes: &[u8]) -> Vec<f32> {
 
 #[test]
 fn an_infinite_energy_is_null_in_json_and_nan_in_npz_and_no_mesh_format_takes_energy() {
-    let dir = scratch_dir("non-finite-energy");
+    infinite_energy(Readers::Crates);
+}
+
+#[test]
+#[ignore = "needs NumPy (python3 -m pip install numpy)"]
+fn an_infinite_energy_reads_back_in_numpy() {
+    infinite_energy(Readers::CratesNumpyAndValidator);
+}
+
+fn infinite_energy(readers: Readers) {
+    let dir = scratch_dir(&format!("non-finite-energy-{readers:?}"));
     let mut heavy = recording(CHAIN);
     heavy.frames.energy.as_mut().unwrap()[0].gravitational = f64::INFINITY;
     let result: Value = serde_json::from_slice(&encoded(&heavy, Format::Json)).unwrap();
@@ -123,6 +148,7 @@ fn an_infinite_energy_is_null_in_json_and_nan_in_npz_and_no_mesh_format_takes_en
     std::fs::write(dir.join("heavy.npz"), &npz).unwrap();
     std::fs::write(dir.join("heavy.json"), result.to_string()).unwrap();
     numpy(
+        readers,
         "import json, sys, numpy as np\n\
          a = np.load(sys.argv[1]); r = json.load(open(sys.argv[2]))\n\
          e = a['energy']\n\
@@ -142,7 +168,17 @@ fn an_infinite_energy_is_null_in_json_and_nan_in_npz_and_no_mesh_format_takes_en
 
 #[test]
 fn positions_beyond_f32_range_are_infinite_in_pc2_and_left_out_of_glb() {
-    let dir = scratch_dir("non-finite-flying");
+    positions_beyond_f32_range(Readers::Crates);
+}
+
+#[test]
+#[ignore = "needs NumPy (python3 -m pip install numpy), node and .ci/node (npm ci --prefix .ci/node)"]
+fn positions_beyond_f32_range_read_back_in_numpy_and_the_khronos_validator() {
+    positions_beyond_f32_range(Readers::CratesNumpyAndValidator);
+}
+
+fn positions_beyond_f32_range(readers: Readers) {
+    let dir = scratch_dir(&format!("non-finite-flying-{readers:?}"));
     let mut flying = recording(FLYING);
     // Frames 4 to 10 thrown beyond f32::MAX (3.4e38), still finite in f64.
     for value in positions_mut(&mut flying)[4 * 9..].iter_mut().skip(1).step_by(3) {
@@ -181,7 +217,7 @@ fn positions_beyond_f32_range_are_infinite_in_pc2_and_left_out_of_glb() {
     let bounds = primitive.get(&gltf::Semantic::Positions).unwrap();
     assert!(bounds.min().unwrap().as_array().unwrap().iter().all(|x| x.as_f64().is_some_and(f64::is_finite)));
     std::fs::write(dir.join("flying.glb"), &glb).unwrap();
-    validate_gltf(&[&dir.join("flying.glb")]);
+    validate_gltf(readers, &[&dir.join("flying.glb")]);
 
     // OBJ holds the f64 values as decimals: tobj (f64) reads back the last frame exactly.
     let models = tobj_load(&encoded(&flying, Format::Obj));
@@ -193,6 +229,7 @@ fn positions_beyond_f32_range_are_infinite_in_pc2_and_left_out_of_glb() {
     std::fs::write(dir.join("flying.npy"), &npy).unwrap();
     std::fs::write(dir.join("flying.json"), result.to_string()).unwrap();
     numpy(
+        readers,
         "import json, sys, numpy as np\n\
          p = np.load(sys.argv[1]); r = json.load(open(sys.argv[2]))\n\
          want = np.array([f['positions'] for f in r['frames']]).reshape(11, 3, 3)\n\

@@ -5,12 +5,10 @@ use std::process::Command;
 
 use drape::output::{Format, write_json};
 
-use crate::common::{Run, mixed_scene, reader_available, repo, scratch_dir};
+use crate::common::{Run, mixed_scene, repo, require_numpy, scratch_dir};
 
 fn check_with_numpy(test: &str, scene: &str) {
-    if !reader_available("NumPy", "python3", &["-c", "import numpy"]) {
-        return;
-    }
+    require_numpy();
     let run = Run::new(scene);
     let dir = scratch_dir(test);
     let mut json = Vec::new();
@@ -36,6 +34,7 @@ fn check_with_numpy(test: &str, scene: &str) {
 }
 
 #[test]
+#[ignore = "needs NumPy (python3 -m pip install numpy)"]
 fn numpy_loads_every_field_of_an_f64_run_bit_for_bit() {
     check_with_numpy(
         "f64",
@@ -44,11 +43,13 @@ fn numpy_loads_every_field_of_an_f64_run_bit_for_bit() {
 }
 
 #[test]
+#[ignore = "needs NumPy (python3 -m pip install numpy)"]
 fn numpy_loads_an_f32_run_bit_for_bit() {
     check_with_numpy("f32", &mixed_scene("f32", "all", &["positions", "velocities", "energy"]));
 }
 
 #[test]
+#[ignore = "needs NumPy (python3 -m pip install numpy)"]
 fn numpy_loads_a_final_frame() {
     check_with_numpy("final", &mixed_scene("f32", "final", &["positions", "strain"]));
 }
