@@ -32,9 +32,12 @@ fn the_example_scene_runs_and_prints_its_result() {
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let result: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(result["stats"]["status"], "succeeded");
+    // From examples/hanging_cloth.json: 2 s at 10 fps is 21 frames (t = 0 included).
     assert_eq!(result["final"]["t"], 2.0);
     assert_eq!(result["frames"].as_array().unwrap().len(), 21);
-    // Two pinned corners hold the sheet: it hangs, so its centre is below the pins.
+    // Two pinned corners hold the sheet: it hangs, so its centre is below the pins. The 20 × 20,
+    // 1 m sheet is centred at y = 1, upright, so its top row (particles 0 to 19, the pinned
+    // corners at both ends) is at y = 1.5; particle 210 (row 10, column 10) is near its middle.
     let final_y: Vec<f64> = result["final"]["positions"]
         .as_array()
         .unwrap()

@@ -69,7 +69,7 @@ async fn two_instances_share_one_postgres_queue() {
         let base = if n % 2 == 0 { &two.base } else { &one.base };
         let job = wait_for(&client, base, id, ended).await;
         assert_eq!((job["status"].as_str(), job["attempts"].as_u64()), (Some("succeeded"), Some(1)), "{job}");
-        assert_eq!(result(&client, base, id).await["stats"]["steps"], 1000);
+        assert_eq!(result(&client, base, id).await["stats"]["steps"], 1000); // 1 s / 0.001 s
     }
     let (ran_one, ran_two) = (counts(one.starts()), counts(two.starts()));
     for id in &ids {
@@ -110,7 +110,7 @@ async fn two_instances_share_one_postgres_queue() {
         (Some("succeeded"), Some(2)),
         "{finished}"
     );
-    assert_eq!(finished["progress"]["step"], 15_000);
+    assert_eq!(finished["progress"]["step"], 15_000); // 15 s / 0.001 s
     assert_eq!(counts(survivor.starts()).get(&medium), Some(&1), "the survivor ran it once, from the start");
     assert_eq!(
         job(&client, &survivor.base, &ids[0]).await["status"],

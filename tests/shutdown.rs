@@ -95,7 +95,7 @@ async fn sigterm_lets_a_running_job_finish_within_the_grace_period() {
     server.sigterm();
     let end = end_event(stream).await;
     assert_eq!(end["status"], "succeeded");
-    assert_eq!(end["progress"]["step"], 20_000);
+    assert_eq!(end["progress"]["step"], 20_000); // 20 s / 0.001 s
     assert!(server.exit_within(PATIENCE).0.success(), "drape serve exits 0 on SIGTERM");
 }
 

@@ -120,6 +120,7 @@ async fn submit_follow_events_and_fetch_the_result() {
     let response = client.get(format!("{base}/jobs/{id}/result")).send().await.unwrap();
     assert_eq!(response.status(), 200);
     let result: Value = response.json().await.unwrap();
+    // Closed form: 20 s / 0.001 s = 20,000 steps; 50 particles × 3 coordinates.
     assert_eq!(result["stats"]["steps"], 20_000);
     assert_eq!(result["final"]["t"], 20.0);
     assert_eq!(result["final"]["positions"].as_array().unwrap().len(), 150);

@@ -102,7 +102,8 @@ async fn a_sweep_runs_to_a_table_csv_and_plot() {
         let error = row["error_vs_reference"]["max"].as_f64().unwrap();
         assert!(error > 0.0 && error < 0.1, "{row}");
     }
-    // Symplectic Euler is first order, RK4 fourth: the observed slopes say so, within ±0.15.
+    // Symplectic Euler is first order, RK4 fourth (their textbook orders of accuracy): the
+    // observed slopes say so, within ±0.15.
     let orders: Vec<(String, f64)> = sweep["convergence"]
         .as_array()
         .unwrap()
