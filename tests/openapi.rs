@@ -189,3 +189,32 @@ async fn the_description_states_what_the_server_accepts_and_answers() {
     let stream = get(&app, &format!("/jobs/{id}/events")).await.text();
     assert!(stream.starts_with("event: end\ndata: {"), "{stream}");
 }
+
+/// No key of the description is null where a value is due: in a YAML flow map an unquoted comma
+/// ends a value, so `{description: Total mass, in kg.}` reads as a description `Total mass` and a
+/// key `in kg.` with no value.
+#[test]
+fn no_description_is_cut_short_by_a_comma() {
+    fn walk(value: &Value, at: &str, cut: &mut Vec<String>) {
+        match value {
+            Value::Object(map) => {
+                for (key, child) in map {
+                    let here = format!("{at}/{key}");
+                    if child.is_null() && !matches!(key.as_str(), "default" | "example" | "const") {
+                        cut.push(here.clone());
+                    }
+                    walk(child, &here, cut);
+                }
+            }
+            Value::Array(items) => {
+                for (i, item) in items.iter().enumerate() {
+                    walk(item, &format!("{at}/{i}"), cut);
+                }
+            }
+            _ => {}
+        }
+    }
+    let mut cut = Vec::new();
+    walk(&yaml(), "", &mut cut);
+    assert!(cut.is_empty(), "keys with no value, each a description cut at a comma: {cut:?}");
+}
