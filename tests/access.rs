@@ -139,3 +139,53 @@ async fn requests_to_other_host_names_are_refused_with_421() {
     assert_eq!(send(&app, get_with("/jobs", &[("host", "drape.example:443")])).await.status, 200);
     assert_eq!(send(&app, get_with("/jobs", &[("host", "localhost")])).await.status, 421);
 }
+
+/// A page on another origin reads every response header the description declares: CORS
+/// exposes each of them by name.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn cors_exposes_every_response_header_the_description_declares() {
+    let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/openapi/openapi.yaml")).unwrap();
+    let spec: serde_json::Value = serde_yaml_ng::from_str(&text).unwrap();
+    let mut declared = std::collections::BTreeSet::new();
+    collect_response_headers(&spec, &mut declared);
+    assert!(declared.contains("drape-job-id") && declared.contains("retry-after"), "{declared:?}");
+
+    let (_, app) = test_app(jobs_config(), with_tokens());
+    let answer = send(
+        &app,
+        get_with(
+            "/jobs",
+            &[("origin", "https://app.example"), ("authorization", &format!("Bearer {TOKEN}"))],
+        ),
+    )
+    .await;
+    assert_eq!(answer.status, 200);
+    let exposed: std::collections::BTreeSet<String> = answer
+        .header("access-control-expose-headers")
+        .unwrap()
+        .split(',')
+        .map(|h| h.trim().to_ascii_lowercase())
+        .collect();
+    let hidden: Vec<&String> = declared.iter().filter(|h| !exposed.contains(*h)).collect();
+    assert!(hidden.is_empty(), "declared but not exposed: {hidden:?}");
+}
+
+/// The names under every `headers` map of a response (in `responses` and `components`).
+fn collect_response_headers(value: &serde_json::Value, names: &mut std::collections::BTreeSet<String>) {
+    match value {
+        serde_json::Value::Object(map) => {
+            for (key, child) in map {
+                if key == "headers"
+                    && let Some(headers) = child.as_object()
+                {
+                    names.extend(headers.keys().map(|h| h.to_ascii_lowercase()));
+                }
+                collect_response_headers(child, names);
+            }
+        }
+        serde_json::Value::Array(items) => {
+            items.iter().for_each(|item| collect_response_headers(item, names))
+        }
+        _ => {}
+    }
+}

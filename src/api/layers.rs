@@ -18,7 +18,7 @@ use std::time::Duration;
 use axum::Router;
 use axum::error_handling::HandleErrorLayer;
 use axum::extract::{DefaultBodyLimit, Request};
-use axum::http::{HeaderValue, Method, header};
+use axum::http::{HeaderName, HeaderValue, Method, header};
 use axum::middleware::{self, Next};
 use axum::response::{IntoResponse, Response};
 use tower::limit::GlobalConcurrencyLimitLayer;
@@ -94,7 +94,17 @@ fn cors(origins: &[String]) -> CorsLayer {
             header::AUTHORIZATION,
             "idempotency-key".parse().expect("a header name"),
         ])
-        .expose_headers([header::LOCATION, header::RETRY_AFTER, header::CONTENT_LOCATION])
+        // Every response header the description declares, so that a page on another origin can
+        // read them (a browser hides all but a few safe ones otherwise).
+        .expose_headers([
+            header::LOCATION,
+            header::RETRY_AFTER,
+            header::CONTENT_LOCATION,
+            header::WWW_AUTHENTICATE,
+            HeaderName::from_static("drape-job-id"),
+            HeaderName::from_static("drape-job-status"),
+            HeaderName::from_static("idempotent-replayed"),
+        ])
         .max_age(Duration::from_secs(3600))
 }
 
