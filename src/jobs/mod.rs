@@ -14,13 +14,17 @@
 //! [`check_untrusted`] takes a scene's bytes through all of admission and compilation at once.
 
 mod cost;
+mod doorbell;
 mod encode;
 mod fingerprint;
 mod id;
+mod jobs_config;
 mod limits;
+mod live;
 mod pool;
 mod record;
 mod service;
+mod shared;
 mod status;
 pub mod store;
 mod sweeps;
@@ -30,9 +34,10 @@ pub use cost::{Cost, IMPLICIT_PASSES, StageCost};
 pub use encode::{EncodingCancelled, TranscodeError, encode_result, transcode};
 pub use fingerprint::fingerprint;
 pub use id::JobId;
+pub use jobs_config::{BeforeRun, JobsConfig};
 pub use limits::{Admitted, Limits, bytes};
 pub use record::{Idempotency, JobRecord, Plan, now_ms};
-pub use service::{BeforeRun, Cancelled, Ended, Jobs, JobsConfig, Submission, SubmitError, Submitted};
+pub use service::{Cancelled, Ended, Jobs, Submission, SubmitError, Submitted};
 pub use status::{Failure, JobStatus};
 pub use store::{
     CancelRequest, Claim, Claimed, Inserted, JobStore, Lease, MemoryStore, Outcome, Page, PostgresStore,

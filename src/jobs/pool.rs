@@ -20,10 +20,13 @@ use std::sync::atomic::Ordering;
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use super::encode::EncodingCancelled;
-use super::service::{Live, Shared};
-use super::store::{Claim, Claimed, Outcome, Renewed};
-use super::{Failure, JobId, JobStatus, encode_result, now_ms};
+use super::encode::{EncodingCancelled, encode_result};
+use super::id::JobId;
+use super::live::Live;
+use super::record::now_ms;
+use super::shared::Shared;
+use super::status::{Failure, JobStatus};
+use super::store::{Claim, Claimed, Outcome, Renewed, StoredResult};
 use crate::output::stats_json;
 use crate::run::{Status, execute};
 use crate::scene::{Compiled, Scene};
@@ -216,7 +219,7 @@ fn success(
     steps_done: u64,
     message: Option<String>,
     stats: &crate::run::Stats,
-    result: super::StoredResult,
+    result: StoredResult,
 ) -> Outcome {
     Outcome {
         status,
