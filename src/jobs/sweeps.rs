@@ -20,7 +20,12 @@ use bytes::Bytes;
 use serde_json::Value;
 use thiserror::Error;
 
-use super::{JobId, JobStatus, Jobs, StoreError, Submission, SubmitError, now_ms};
+use super::id::JobId;
+use super::limits::Limits;
+use super::record::now_ms;
+use super::service::{Jobs, Submission, SubmitError};
+use super::status::JobStatus;
+use super::store::StoreError;
 use crate::output::{Format, read_json};
 use crate::scene::{Field, FieldError, FrameSelection, Scene};
 use crate::sweep::{Outcome, Sweep, SweepError, Table};
@@ -289,7 +294,7 @@ fn assemble(record: &SweepRecord, fresh: Vec<(usize, StoredRun)>) -> SweepState 
 /// Every limit a run of `sweep` (read from `document`) exceeds when run for its table (final
 /// positions only), each at the `vary` entry to blame or at the base scene's field: what
 /// `POST /sweeps` refuses, for a sweep run elsewhere (`drape sweep`).
-pub fn sweep_over_limit(document: &Value, sweep: &Sweep, limits: &super::Limits) -> Vec<FieldError> {
+pub fn sweep_over_limit(document: &Value, sweep: &Sweep, limits: &Limits) -> Vec<FieldError> {
     let mut sweep = sweep.clone();
     sweep.reference.iter_mut().for_each(keep_final_positions);
     sweep.variants.iter_mut().for_each(|v| keep_final_positions(&mut v.scene));
@@ -298,10 +303,7 @@ pub fn sweep_over_limit(document: &Value, sweep: &Sweep, limits: &super::Limits)
 
 /// A scene as a sweep runs it for its table, admitted under `limits` (with its self-collision
 /// cap set), or the limits it exceeds.
-pub fn admit_for_table(
-    scene: &Scene,
-    limits: &super::Limits,
-) -> Result<crate::scene::Compiled, Vec<FieldError>> {
+pub fn admit_for_table(scene: &Scene, limits: &Limits) -> Result<crate::scene::Compiled, Vec<FieldError>> {
     let mut scene = scene.clone();
     keep_final_positions(&mut scene);
     limits.admit(&scene).map(|admitted| admitted.compiled)
@@ -320,7 +322,7 @@ fn vary_lists(document: &Value) -> Vec<(String, Vec<Value>)> {
 
 /// Every limit a run exceeds, at the `vary` entry whose value is to blame, or else at the base
 /// scene's (or reference's) field; each pointer is reported once.
-fn over_limit(sweep: &Sweep, vary_lists: &[(String, Vec<Value>)], limits: &super::Limits) -> Vec<FieldError> {
+fn over_limit(sweep: &Sweep, vary_lists: &[(String, Vec<Value>)], limits: &Limits) -> Vec<FieldError> {
     let mut problems: Vec<FieldError> = Vec::new();
     let mut report = |problem: FieldError| {
         if !problems.iter().any(|p| p.pointer == problem.pointer) {
