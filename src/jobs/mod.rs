@@ -43,5 +43,7 @@ pub use store::{
     CancelRequest, Claim, Claimed, Inserted, JobStore, Lease, MemoryStore, Outcome, Page, PostgresStore,
     Renewed, SqliteStore, StoreError, StoreUrl, StoredResult, attempts_exhausted,
 };
-pub use sweeps::{SweepRecord, SweepState, SweepSubmitError, Sweeps, admit_for_table, sweep_over_limit};
+pub use sweeps::{
+    SweepDocumentError, SweepRecord, SweepState, SweepSubmitError, Sweeps, admit_for_table, sweep_over_limit,
+};
 pub use untrusted::{Refusal, check_untrusted};

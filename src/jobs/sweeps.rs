@@ -14,6 +14,7 @@
 //! still under way instead of reading back and parsing every result again.
 
 use std::collections::HashMap;
+use std::io;
 use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
 
 use bytes::Bytes;
@@ -28,7 +29,12 @@ use super::status::JobStatus;
 use super::store::StoreError;
 use crate::output::{Format, read_json};
 use crate::scene::{Field, FieldError, FrameSelection, Scene};
-use crate::sweep::{Outcome, Sweep, SweepError, Table};
+use crate::sweep::{Outcome, Sweep, SweepError, Table, write_csv, write_svg};
+
+/// Why a sweep document is not a sweep that can run: not JSON, invalid pointers or values, or
+/// more variants than allowed. The sweep module's own error, under the name the job system gives
+/// it, so that the API need not reach past the job system for it.
+pub use crate::sweep::SweepError as SweepDocumentError;
 
 /// One sweep submitted as jobs.
 #[derive(Debug)]
@@ -75,6 +81,23 @@ pub struct SweepState {
     pub finished: usize,
     /// Runs in all (reference included).
     pub runs: usize,
+}
+
+impl SweepState {
+    /// The table as CSV: one row per run, the varied values first.
+    pub fn csv(&self) -> io::Result<Vec<u8>> {
+        let mut bytes = Vec::new();
+        write_csv(&self.table, &mut bytes)?;
+        Ok(bytes)
+    }
+
+    /// The work-precision plot of the table as SVG: error against wall time, log-log, one
+    /// series per integrator, under `title`.
+    pub fn svg(&self, title: &str) -> io::Result<Vec<u8>> {
+        let mut bytes = Vec::new();
+        write_svg(&self.table, title, &mut bytes)?;
+        Ok(bytes)
+    }
 }
 
 /// Why a sweep was refused.
