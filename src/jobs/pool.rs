@@ -1,7 +1,8 @@
 //! The worker threads that run jobs, and the watchdog that enforces their wall time and holds
 //! their leases.
 //!
-//! Each worker is a plain thread that claims a job from the store, reads its scene, runs it with
+//! Each worker is a plain thread that claims a job from the store, reads and compiles its scene
+//! (or takes the model compiled at admission, see [`handoff`](super::handoff)), runs it with
 //! [`run::execute`](crate::run::execute) inside `catch_unwind` (so a panic fails that job alone),
 //! encodes the result and stores it. A claim is committed before the job starts; a worker whose
 //! claim fails backs off and starts nothing, and a claimed job this instance already runs (its
@@ -128,7 +129,12 @@ fn run_job(shared: &Shared, claimed: Claimed) {
     );
 
     let ran = catch_unwind(AssertUnwindSafe(|| {
-        let compiled = compile(shared, &scene)?;
+        // The model compiled at admission if its submitter waits for it here, else the stored
+        // scene compiled now.
+        let compiled = match shared.handoff.take(id) {
+            Some(compiled) => compiled,
+            None => compile(shared, &scene)?,
+        };
         if let Some(hook) = &shared.config.before_run {
             hook(&compiled);
         }

@@ -16,6 +16,7 @@ use thiserror::Error;
 use tokio::sync::watch;
 
 use super::doorbell::Doorbell;
+use super::handoff::{Handoff, KeptModel};
 use super::id::JobId;
 use super::jobs_config::JobsConfig;
 use super::limits::Limits;
@@ -130,6 +131,7 @@ impl Jobs {
             runtime: tokio::runtime::Handle::current(),
             owner: format!("{}-{}", std::process::id(), JobId::new()),
             doorbell: Doorbell::new(workers),
+            handoff: Arc::new(Handoff::new(workers)),
             running: AtomicUsize::new(0),
             particle_steps: AtomicU64::new(0),
             busy_nanos: AtomicU64::new(0),
@@ -189,12 +191,33 @@ impl Jobs {
 
     /// Admits and queues a scene, or finds the earlier job with the same idempotency key.
     pub async fn submit(&self, submission: Submission) -> Result<Submitted, SubmitError> {
+        self.queue(submission, false).await.map(|(submitted, _)| submitted)
+    }
+
+    /// Admits and queues a scene like [`submit`](Self::submit), for a caller that waits for the
+    /// job on this instance (`POST /simulate`): the model compiled at admission is kept, while
+    /// the returned [`KeptModel`] lives, for this instance's worker to run instead of compiling
+    /// the stored scene again.
+    pub async fn submit_to_wait(
+        &self,
+        submission: Submission,
+    ) -> Result<(Submitted, KeptModel), SubmitError> {
+        self.queue(submission, true).await
+    }
+
+    /// Admits and queues a scene, keeping its compiled model for this instance's workers if
+    /// `hand_on`.
+    async fn queue(
+        &self,
+        submission: Submission,
+        hand_on: bool,
+    ) -> Result<(Submitted, KeptModel), SubmitError> {
         let Submission { scene, document, fingerprint, idempotency_key, max_work } = submission;
         let idempotency = idempotency_key.map(|key| Idempotency { key, fingerprint });
         if let Some(key) = &idempotency
             && let Some(earlier) = self.shared.store.find_by_key(&key.key).await?
         {
-            return repeat_of(earlier, key);
+            return repeat_of(earlier, key).map(|submitted| (submitted, KeptModel::NONE));
         }
 
         // A full queue refuses before any work.
@@ -208,9 +231,11 @@ impl Jobs {
             return Err(SubmitError::QueueFull);
         }
         // Admission counts particles and springs, then compiles (which allocates them), so it
-        // runs off the async threads.
-        let (plan, cost) = self
-            .admitting(move |limits| limits.admit(&scene).map(|a| (a.plan, a.cost)))
+        // runs off the async threads; the model is dropped there too unless it is handed on.
+        let (plan, cost, compiled) = self
+            .admitting(move |limits| {
+                limits.admit(&scene).map(|a| (a.plan, a.cost, hand_on.then_some(a.compiled)))
+            })
             .await?
             .map_err(SubmitError::OverLimit)?;
         if let Some(budget) = max_work
@@ -227,6 +252,8 @@ impl Jobs {
         }
 
         let id = JobId::new();
+        // Kept before the insert, so a worker that claims the job at once finds it.
+        let kept = compiled.map_or(KeptModel::NONE, |compiled| shared.handoff.keep(&id, compiled));
         let record = JobRecord::queued(id.clone(), plan, idempotency.clone());
         match shared.store.insert(record.clone(), &document.to_string()).await? {
             Inserted::New => {}
@@ -234,13 +261,14 @@ impl Jobs {
                 return repeat_of(
                     *earlier,
                     idempotency.as_ref().expect("only a keyed job can find its key taken"),
-                );
+                )
+                .map(|submitted| (submitted, KeptModel::NONE));
             }
         }
         drop(admitting);
         shared.doorbell.ring();
         tracing::info!(job = %id, particles = plan.particles, steps = plan.steps, "job queued");
-        Ok(Submitted { job: record, repeated: false })
+        Ok((Submitted { job: record, repeated: false }, kept))
     }
 
     /// The job, with its live progress if it is running here.
@@ -490,5 +518,66 @@ fn repeat_of(earlier: JobRecord, key: &Idempotency) -> Result<Submitted, SubmitE
     match &earlier.idempotency {
         Some(held) if held.fingerprint == key.fingerprint => Ok(Submitted { job: earlier, repeated: true }),
         _ => Err(SubmitError::KeyReused { key: key.key.clone(), job: earlier.id }),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::jobs::store::MemoryStore;
+    use crate::scene::Compiled;
+
+    /// A job system with one worker that notes the particles of every model it runs.
+    fn noting_particles() -> (Jobs, Arc<Mutex<Vec<usize>>>) {
+        let ran = Arc::new(Mutex::new(Vec::new()));
+        let noted = Arc::clone(&ran);
+        let config = JobsConfig {
+            workers: 1,
+            before_run: Some(Arc::new(move |compiled: &Compiled| {
+                noted.lock().unwrap().push(compiled.model.particle_count());
+            })),
+            ..JobsConfig::default()
+        };
+        (Jobs::start(Arc::new(MemoryStore::new()), config), ran)
+    }
+
+    /// A submission whose stored document (a chain of 7) differs from its scene (a chain of 3),
+    /// so the particles the worker runs tell which model it ran: the one compiled at admission
+    /// (3) or the stored document compiled by the worker (7).
+    fn telling_submission() -> Submission {
+        let chain = |count: u32| {
+            serde_json::json!({"duration": 0.01, "dt": 0.01, "error_estimate": "none",
+                               "bodies": [{"type": "chain", "count": count}]})
+        };
+        Submission {
+            scene: Scene::from_value(chain(3)).unwrap(),
+            document: chain(7),
+            fingerprint: 0,
+            idempotency_key: None,
+            max_work: None,
+        }
+    }
+
+    #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+    async fn a_job_waited_for_here_runs_the_model_compiled_at_admission() {
+        let (jobs, ran) = noting_particles();
+        let (submitted, kept) = jobs.submit_to_wait(telling_submission()).await.unwrap();
+        let ended = jobs.wait(&submitted.job.id).await.unwrap().unwrap();
+        assert_eq!(ended.status, JobStatus::Succeeded);
+        assert_eq!(*ran.lock().unwrap(), [3], "the worker ran the admitted model, not a second compile");
+        assert!(!jobs.shared.handoff.holds(&submitted.job.id), "the worker took it");
+        drop(kept);
+        jobs.shutdown(Duration::ZERO).await;
+    }
+
+    #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+    async fn a_queued_job_runs_its_stored_scene_and_keeps_no_model() {
+        let (jobs, ran) = noting_particles();
+        let submitted = jobs.submit(telling_submission()).await.unwrap();
+        assert!(!jobs.shared.handoff.holds(&submitted.job.id));
+        let ended = jobs.wait(&submitted.job.id).await.unwrap().unwrap();
+        assert_eq!(ended.status, JobStatus::Succeeded);
+        assert_eq!(*ran.lock().unwrap(), [7], "the worker compiled the stored document");
+        jobs.shutdown(Duration::ZERO).await;
     }
 }

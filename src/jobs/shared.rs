@@ -11,6 +11,7 @@ use std::thread::JoinHandle;
 use tokio::sync::watch;
 
 use super::doorbell::Doorbell;
+use super::handoff::Handoff;
 use super::id::JobId;
 use super::jobs_config::JobsConfig;
 use super::live::Live;
@@ -25,6 +26,8 @@ pub(super) struct Shared {
     /// This instance's name in leases: unique per process.
     pub(super) owner: String,
     pub(super) doorbell: Doorbell,
+    /// Models compiled at admission for jobs whose submitter waits for them here.
+    pub(super) handoff: Arc<Handoff>,
     pub(super) running: AtomicUsize,
     pub(super) particle_steps: AtomicU64,
     pub(super) busy_nanos: AtomicU64,
@@ -33,7 +36,7 @@ pub(super) struct Shared {
     /// Submissions between their room check and their insert.
     pub(super) admitting: AtomicUsize,
     /// One admission at a time: each compiles its scene (up to the particle and spring limits),
-    /// and that memory is held outside every job's share.
+    /// and that memory is held outside every job's share, as are the models in `handoff`.
     pub(super) admission: tokio::sync::Semaphore,
     /// Bumped whenever a job starts or ends here, to wake waiters.
     pub(super) changes: watch::Sender<u64>,
