@@ -7,7 +7,8 @@ use std::time::Duration;
 use clap::Args;
 
 use crate::api::{AllowedHosts, ApiConfig, AuthToken};
-use crate::jobs::{JobsConfig, Limits, StoreUrl};
+use crate::jobs::store::{MemoryStore, StoreUrl};
+use crate::jobs::{JobsConfig, Limits};
 
 /// How the server runs and what it accepts.
 #[derive(Args, Clone, Debug)]
@@ -75,7 +76,7 @@ pub struct Config {
     #[arg(long, env = "DRAPE_ALLOWED_HOSTS", value_delimiter = ',', value_parser = host_name)]
     pub allowed_hosts: Option<Vec<String>>,
     /// With `--store memory`: ended jobs kept with their results; older ones are forgotten.
-    #[arg(long, env = "DRAPE_RETAIN_JOBS", default_value_t = crate::jobs::MemoryStore::DEFAULT_RETAIN)]
+    #[arg(long, env = "DRAPE_RETAIN_JOBS", default_value_t = MemoryStore::DEFAULT_RETAIN)]
     pub retain_jobs: usize,
     /// Starts a job may have without ending before it is failed instead of started again: a job
     /// that crashes the server (or loses its instance) each time it runs ends after this many.

@@ -10,9 +10,8 @@ use axum::response::{IntoResponse, Response};
 use serde_json::json;
 
 use super::access::Refusal;
-use crate::jobs::{JobId, JobStatus, StoreError, SubmitError, SweepSubmitError};
+use crate::jobs::{JobId, JobStatus, StoreError, SubmitError, SweepDocumentError, SweepSubmitError};
 use crate::scene::{FieldError, SceneError};
-use crate::sweep::SweepError;
 
 /// The media type of a problem body.
 pub const PROBLEM_JSON: &str = "application/problem+json";
@@ -486,11 +485,11 @@ fn summary(errors: &[FieldError]) -> String {
 impl From<SweepSubmitError> for AppError {
     fn from(e: SweepSubmitError) -> Self {
         match e {
-            SweepSubmitError::Invalid(SweepError::Syntax { line, column, message }) => {
+            SweepSubmitError::Invalid(SweepDocumentError::Syntax { line, column, message }) => {
                 Self::MalformedJson { line, column, message }
             }
-            SweepSubmitError::Invalid(SweepError::Invalid(errors)) => Self::InvalidSweep(errors),
-            SweepSubmitError::Invalid(e @ SweepError::TooManyVariants { .. }) => {
+            SweepSubmitError::Invalid(SweepDocumentError::Invalid(errors)) => Self::InvalidSweep(errors),
+            SweepSubmitError::Invalid(e @ SweepDocumentError::TooManyVariants { .. }) => {
                 Self::InvalidSweep(vec![FieldError::new("/vary", format!("{e} (--max-sweep-variants)"))])
             }
             SweepSubmitError::OverLimit(errors) => Self::InvalidSweep(errors),

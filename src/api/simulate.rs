@@ -5,7 +5,9 @@
 //! work budget (element-steps, see [`Cost`](crate::jobs::Cost)) are refused with `413`, the
 //! field of the costliest stage and a pointer to `POST /jobs`. A run that ends failed because
 //! its self-collision met more pairs than it may hold is a `422` at that field. If the
-//! client goes away or the request times out, the job is cancelled.
+//! client goes away or the request times out, the job is cancelled. The scene is compiled once,
+//! at admission, and a worker of this instance runs that model (see
+//! [`KeptModel`](crate::jobs::KeptModel)).
 
 use axum::extract::State;
 use axum::http::{HeaderValue, header};
@@ -32,7 +34,9 @@ pub async fn simulate(
         idempotency_key: None,
         max_work: Some(state.config.simulate_work_budget),
     };
-    let id = state.jobs.submit(submission).await?.job.id;
+    // Held until the job ends: this instance's worker runs the model admission compiled.
+    let (submitted, _kept) = state.jobs.submit_to_wait(submission).await?;
+    let id = submitted.job.id;
     let guard = CancelOnDrop { jobs: state.jobs.clone(), id: Some(id.clone()) };
     let ended = state
         .jobs

@@ -12,7 +12,6 @@ use super::problem::AppError;
 use super::views::rfc3339;
 use crate::jobs::{SweepRecord, SweepState};
 use crate::scene::FieldError;
-use crate::sweep::{write_csv, write_svg};
 
 /// `POST /sweeps`: checks the sweep (pointers, values, variant count, every run's limits) and
 /// queues its reference and every variant as jobs; `202` with the sweep and its `Location`.
@@ -40,8 +39,7 @@ pub async fn get(
     let record = state.sweeps.get(&id).ok_or_else(|| AppError::SweepNotFound { id: id.to_string() })?;
     let sweep = state.sweeps.state(&state.jobs, &record).await?;
     if csv {
-        let mut bytes = Vec::new();
-        write_csv(&sweep.table, &mut bytes).map_err(|e| AppError::Internal(format!("CSV: {e}")))?;
+        let bytes = sweep.csv().map_err(|e| AppError::Internal(format!("CSV: {e}")))?;
         return Ok(([(header::CONTENT_TYPE, "text/csv; charset=utf-8")], bytes).into_response());
     }
     Ok(Json(sweep_view(&record, &sweep)).into_response())
@@ -51,9 +49,7 @@ pub async fn get(
 pub async fn plot(State(state): State<AppState>, SweepPath(id): SweepPath) -> Result<Response, AppError> {
     let record = state.sweeps.get(&id).ok_or_else(|| AppError::SweepNotFound { id: id.to_string() })?;
     let sweep = state.sweeps.state(&state.jobs, &record).await?;
-    let mut bytes = Vec::new();
-    write_svg(&sweep.table, &format!("sweep {id}"), &mut bytes)
-        .map_err(|e| AppError::Internal(format!("SVG: {e}")))?;
+    let bytes = sweep.svg(&format!("sweep {id}")).map_err(|e| AppError::Internal(format!("SVG: {e}")))?;
     Ok(([(header::CONTENT_TYPE, "image/svg+xml")], bytes).into_response())
 }
 

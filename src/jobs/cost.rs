@@ -18,7 +18,7 @@ use crate::scene::{
 };
 use crate::solver::{WindModel, candidate_pairs};
 
-use super::Plan;
+use super::record::Plan;
 
 /// Force evaluations over every particle and spring that a step of implicit Euler is counted
 /// as: its assembly and a few conjugate-gradient iterations on the multigrid preconditioner (the

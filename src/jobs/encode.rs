@@ -13,7 +13,7 @@ use std::io::{self, Write};
 
 use bytes::Bytes;
 
-use super::StoredResult;
+use super::store::StoredResult;
 use crate::output::{Format, check_recording, encode, read_json, recorded_fields};
 use crate::run::Recording;
 use crate::scene::FieldError;

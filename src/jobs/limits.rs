@@ -10,8 +10,8 @@
 
 use crate::scene::{Body, Compiled, FieldError, Scene};
 
-use super::Plan;
 use super::cost::{BYTES_PER_PAIR, Cost, companion_steps, recorded, size_field};
+use super::record::Plan;
 
 /// The largest run this server accepts.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -7,45 +7,45 @@
 //! leases of running jobs, copies their progress (from the run's lock-free
 //! [`Control`](crate::run::Control)) to the store and picks up cancellations asked of other
 //! instances. Results are encoded once and kept in the store, compressed, until the retention
-//! time. The stores are [`MemoryStore`], [`SqliteStore`] (the default) and [`PostgresStore`]
-//! (several instances, one queue); [`StoreUrl`] picks one. The HTTP API talks to this module,
-//! never to the solver.
+//! time. The stores live in [`store`]: [`MemoryStore`], [`SqliteStore`] (the default) and
+//! [`PostgresStore`] (several instances, one queue); [`StoreUrl`] picks one. The HTTP API talks
+//! to this module, never to the solver.
 //! [`Sweeps`] queues every run of a sweep as a job and assembles its table from their results.
 //! [`check_untrusted`] takes a scene's bytes through all of admission and compilation at once.
 
 mod cost;
+mod doorbell;
 mod encode;
 mod fingerprint;
+mod handoff;
 mod id;
+mod jobs_config;
 mod limits;
-mod memory;
-mod open;
+mod live;
 mod pool;
-mod postgres;
 mod record;
 mod service;
-mod sql;
-mod sqlite;
+mod shared;
 mod status;
-mod store;
+pub mod store;
 mod sweeps;
 mod untrusted;
 
 pub use cost::{Cost, IMPLICIT_PASSES, StageCost};
 pub use encode::{EncodingCancelled, TranscodeError, encode_result, transcode};
 pub use fingerprint::fingerprint;
+pub use handoff::KeptModel;
 pub use id::JobId;
+pub use jobs_config::{BeforeRun, JobsConfig};
 pub use limits::{Admitted, Limits, bytes};
-pub use memory::MemoryStore;
-pub use open::StoreUrl;
-pub use postgres::PostgresStore;
 pub use record::{Idempotency, JobRecord, Plan, now_ms};
-pub use service::{BeforeRun, Cancelled, Ended, Jobs, JobsConfig, Submission, SubmitError, Submitted};
-pub use sqlite::SqliteStore;
+pub use service::{Cancelled, Ended, Jobs, Submission, SubmitError, Submitted};
 pub use status::{Failure, JobStatus};
 pub use store::{
-    CancelRequest, Claim, Claimed, Inserted, JobStore, Lease, Outcome, Page, Renewed, StoreError,
-    StoredResult, attempts_exhausted,
+    CancelRequest, Claim, Claimed, Inserted, JobStore, Lease, MemoryStore, Outcome, Page, PostgresStore,
+    Renewed, SqliteStore, StoreError, StoreUrl, StoredResult, attempts_exhausted,
 };
-pub use sweeps::{SweepRecord, SweepState, SweepSubmitError, Sweeps, admit_for_table, sweep_over_limit};
+pub use sweeps::{
+    SweepDocumentError, SweepRecord, SweepState, SweepSubmitError, Sweeps, admit_for_table, sweep_over_limit,
+};
 pub use untrusted::{Refusal, check_untrusted};

@@ -1,7 +1,8 @@
 //! The worker threads that run jobs, and the watchdog that enforces their wall time and holds
 //! their leases.
 //!
-//! Each worker is a plain thread that claims a job from the store, reads its scene, runs it with
+//! Each worker is a plain thread that claims a job from the store, reads and compiles its scene
+//! (or takes the model compiled at admission, see [`handoff`](super::handoff)), runs it with
 //! [`run::execute`](crate::run::execute) inside `catch_unwind` (so a panic fails that job alone),
 //! encodes the result and stores it. A claim is committed before the job starts; a worker whose
 //! claim fails backs off and starts nothing, and a claimed job this instance already runs (its
@@ -20,10 +21,13 @@ use std::sync::atomic::Ordering;
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use super::encode::EncodingCancelled;
-use super::service::{Live, Shared};
-use super::store::{Claim, Claimed, Outcome, Renewed};
-use super::{Failure, JobId, JobStatus, encode_result, now_ms};
+use super::encode::{EncodingCancelled, encode_result};
+use super::id::JobId;
+use super::live::Live;
+use super::record::now_ms;
+use super::shared::Shared;
+use super::status::{Failure, JobStatus};
+use super::store::{Claim, Claimed, Outcome, Renewed, StoredResult};
 use crate::output::stats_json;
 use crate::run::{Status, execute};
 use crate::scene::{Compiled, Scene};
@@ -125,7 +129,12 @@ fn run_job(shared: &Shared, claimed: Claimed) {
     );
 
     let ran = catch_unwind(AssertUnwindSafe(|| {
-        let compiled = compile(shared, &scene)?;
+        // The model compiled at admission if its submitter waits for it here, else the stored
+        // scene compiled now.
+        let compiled = match shared.handoff.take(id) {
+            Some(compiled) => compiled,
+            None => compile(shared, &scene)?,
+        };
         if let Some(hook) = &shared.config.before_run {
             hook(&compiled);
         }
@@ -216,7 +225,7 @@ fn success(
     steps_done: u64,
     message: Option<String>,
     stats: &crate::run::Stats,
-    result: super::StoredResult,
+    result: StoredResult,
 ) -> Outcome {
     Outcome {
         status,

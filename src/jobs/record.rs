@@ -2,7 +2,8 @@
 
 use std::time::{SystemTime, UNIX_EPOCH};
 
-use super::{Failure, JobId, JobStatus};
+use super::id::JobId;
+use super::status::{Failure, JobStatus};
 
 /// One job as stored.
 #[derive(Clone, Debug, PartialEq)]

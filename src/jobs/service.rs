@@ -8,65 +8,25 @@
 
 use std::collections::HashMap;
 use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
-use std::sync::{Arc, Condvar, Mutex, MutexGuard, PoisonError, Weak};
+use std::sync::{Arc, Mutex, PoisonError, Weak};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use thiserror::Error;
 use tokio::sync::watch;
 
+use super::doorbell::Doorbell;
+use super::handoff::{Handoff, KeptModel};
+use super::id::JobId;
+use super::jobs_config::JobsConfig;
+use super::limits::Limits;
+use super::live::{CANCELLED, Live, SHUT_DOWN};
 use super::pool::{spawn_watchdog, spawn_workers};
-use super::store::{CancelRequest, Inserted, JobStore, Lease, Outcome, Page, StoreError, StoredResult};
-use super::{Idempotency, JobId, JobRecord, JobStatus, Limits, Plan, now_ms};
-use crate::run::Control;
-use crate::scene::{Compiled, FieldError, Scene};
-
-/// A function run on the worker thread just before each simulation; tests use it to make a job
-/// panic. It is set only through [`JobsConfig`], never from the command line or HTTP.
-pub type BeforeRun = Arc<dyn Fn(&Compiled) + Send + Sync>;
-
-/// How the job system runs.
-#[derive(Clone)]
-pub struct JobsConfig {
-    /// Worker threads.
-    pub workers: usize,
-    /// Jobs that may wait for a worker.
-    pub queue_capacity: usize,
-    /// The longest a job may run before it is stopped and failed.
-    pub wall_time: Duration,
-    /// The largest scene admitted.
-    pub limits: Limits,
-    /// Run before each simulation (see [`BeforeRun`]).
-    pub before_run: Option<BeforeRun>,
-    /// How long a claimed job stays this instance's without a renewal; a job whose instance
-    /// died runs again elsewhere after this.
-    pub lease: Duration,
-    /// How long results are kept after their job ends.
-    pub result_ttl: Duration,
-    /// How long an idle worker waits before looking in the store again for jobs it was not told
-    /// of: queued by another instance sharing the store, or left by one that died. A job queued
-    /// through this instance wakes a worker at once.
-    pub idle_poll: Duration,
-    /// Starts a job may have without ending (each crashed or lost its instance) before it is
-    /// failed rather than started again.
-    pub max_attempts: u32,
-}
-
-impl Default for JobsConfig {
-    fn default() -> Self {
-        Self {
-            workers: std::thread::available_parallelism().map_or(1, usize::from),
-            queue_capacity: 64,
-            wall_time: Duration::from_secs(300),
-            limits: Limits::default(),
-            before_run: None,
-            lease: Duration::from_secs(30),
-            result_ttl: Duration::from_secs(24 * 3600),
-            idle_poll: Duration::from_millis(200),
-            max_attempts: 3,
-        }
-    }
-}
+use super::record::{Idempotency, JobRecord, now_ms};
+use super::shared::Shared;
+use super::status::JobStatus;
+use super::store::{CancelRequest, Inserted, JobStore, Outcome, Page, StoreError, StoredResult};
+use crate::scene::{FieldError, Scene};
 
 /// A scene to run, as received.
 pub struct Submission {
@@ -160,190 +120,6 @@ pub struct Jobs {
     shared: Arc<Shared>,
 }
 
-pub(super) struct Shared {
-    pub(super) store: Arc<dyn JobStore>,
-    pub(super) config: JobsConfig,
-    pub(super) runtime: tokio::runtime::Handle,
-    /// This instance's name in leases: unique per process.
-    pub(super) owner: String,
-    pub(super) doorbell: Doorbell,
-    pub(super) running: AtomicUsize,
-    pub(super) particle_steps: AtomicU64,
-    pub(super) busy_nanos: AtomicU64,
-    pub(super) stopped: AtomicBool,
-    pub(super) workers_gone: AtomicBool,
-    /// Submissions between their room check and their insert.
-    admitting: AtomicUsize,
-    /// One admission at a time: each compiles its scene (up to the particle and spring limits),
-    /// and that memory is held outside every job's share.
-    admission: tokio::sync::Semaphore,
-    /// Bumped whenever a job starts or ends here, to wake waiters.
-    changes: watch::Sender<u64>,
-    live: Mutex<HashMap<JobId, Arc<Live>>>,
-    threads: Mutex<Vec<JoinHandle<()>>>,
-}
-
-/// What this process knows of a job while it runs here.
-pub(super) struct Live {
-    pub(super) control: Control,
-    pub(super) plan: Plan,
-    pub(super) status: watch::Sender<JobStatus>,
-    pub(super) started: Instant,
-    pub(super) timed_out: AtomicBool,
-    /// The job is no longer this instance's (its lease lapsed and it was claimed again, or it was
-    /// cancelled elsewhere meanwhile): its end is not recorded here.
-    pub(super) lease_lost: AtomicBool,
-    /// Shutdown stopped it and it goes back to the queue, to run again after a restart.
-    pub(super) released: AtomicBool,
-    /// Its end is being recorded (or was): the watchdog leaves its lease alone, and a second
-    /// recording (a worker returning after shutdown gave up on it) does nothing.
-    pub(super) ending: AtomicBool,
-    pub(super) shutting_down: AtomicBool,
-    /// The result once it is stored, for whoever waits on the job here: `POST /simulate`
-    /// answers with it without reading it back from the store.
-    result: Mutex<Option<StoredResult>>,
-}
-
-impl Live {
-    pub(super) fn new(plan: Plan) -> Self {
-        Self {
-            control: Control::new(),
-            plan,
-            status: watch::Sender::new(JobStatus::Running),
-            started: Instant::now(),
-            timed_out: AtomicBool::new(false),
-            lease_lost: AtomicBool::new(false),
-            released: AtomicBool::new(false),
-            ending: AtomicBool::new(false),
-            shutting_down: AtomicBool::new(false),
-            result: Mutex::new(None),
-        }
-    }
-
-    /// Why a cancelled job was cancelled.
-    pub(super) fn cancel_reason(&self) -> String {
-        if self.shutting_down.load(Ordering::Relaxed) { SHUT_DOWN.into() } else { CANCELLED.into() }
-    }
-}
-
-const SHUT_DOWN: &str = "the server shut down before the job finished";
-const CANCELLED: &str = "cancelled by request";
-
-/// Wakes idle workers when a job is submitted here; a worker that misses a ring finds the job
-/// at its next [`JobsConfig::idle_poll`].
-///
-/// Rings are counted, so one that comes while every worker is between its look at the store and
-/// its wait is not lost; the count is held to the number of workers, as each ring past that
-/// would only send a worker to find the queue already empty.
-pub(super) struct Doorbell {
-    rings: Mutex<usize>,
-    bell: Condvar,
-    most: usize,
-}
-
-impl Doorbell {
-    /// A bell for `workers` workers.
-    pub(super) fn new(workers: usize) -> Self {
-        Self { rings: Mutex::new(0), bell: Condvar::new(), most: workers.max(1) }
-    }
-
-    /// Wakes one waiting worker, or the next one to wait.
-    pub(super) fn ring(&self) {
-        let mut rings = self.rings.lock().unwrap_or_else(PoisonError::into_inner);
-        *rings = (*rings + 1).min(self.most);
-        self.bell.notify_one();
-    }
-
-    fn ring_all(&self) {
-        *self.rings.lock().unwrap_or_else(PoisonError::into_inner) = self.most;
-        self.bell.notify_all();
-    }
-
-    /// Waits for a ring, or `timeout`; returns whether it was rung.
-    pub(super) fn wait(&self, timeout: Duration) -> bool {
-        let rings = self.rings.lock().unwrap_or_else(PoisonError::into_inner);
-        let (mut rings, _) = self
-            .bell
-            .wait_timeout_while(rings, timeout, |rings| *rings == 0)
-            .unwrap_or_else(PoisonError::into_inner);
-        let rung = *rings > 0;
-        *rings = rings.saturating_sub(1);
-        rung
-    }
-}
-
-impl Shared {
-    fn live(&self) -> MutexGuard<'_, HashMap<JobId, Arc<Live>>> {
-        self.live.lock().unwrap_or_else(PoisonError::into_inner)
-    }
-
-    pub(super) fn live_jobs(&self) -> Vec<(JobId, Arc<Live>)> {
-        self.live().iter().map(|(id, live)| (id.clone(), Arc::clone(live))).collect()
-    }
-
-    /// A lease for this instance from now.
-    pub(super) fn lease(&self) -> Lease {
-        Lease { owner: self.owner.clone(), until_ms: now_ms() + self.config.lease.as_millis() as u64 }
-    }
-
-    /// Whether a job runs here.
-    pub(super) fn is_live(&self, id: &JobId) -> bool {
-        self.live().contains_key(id)
-    }
-
-    /// Wakes whoever waits for a job to start or end here.
-    pub(super) fn changed(&self) {
-        self.changes.send_modify(|n| *n += 1);
-    }
-
-    /// Records that a job started here.
-    pub(super) fn started(&self, id: &JobId, live: &Arc<Live>) {
-        self.live().insert(id.clone(), Arc::clone(live));
-        self.changed();
-    }
-
-    /// [`record_end`](Self::record_end) from a worker thread.
-    pub(super) fn finish(&self, id: &JobId, live: &Live, outcome: Outcome) {
-        self.runtime.block_on(self.record_end(id, live, outcome));
-    }
-
-    /// Records the end of a job run here (unless it is no longer ours, or goes back to the
-    /// queue), logs it once it is committed, tells its watchers, and forgets it. Only the first
-    /// call for a job does anything.
-    pub(super) async fn record_end(&self, id: &JobId, live: &Live, outcome: Outcome) {
-        if live.ending.swap(true, Ordering::SeqCst) {
-            return;
-        }
-        let status = outcome.status;
-        if live.released.load(Ordering::Relaxed) {
-            match self.store.release(id, &self.owner).await {
-                Ok(()) => tracing::info!(job = %id, "job put back in the queue for the next instance"),
-                Err(e) => tracing::error!(job = %id, error = %e, "cannot put the job back in the queue"),
-            }
-        } else if live.lease_lost.load(Ordering::Relaxed) {
-            tracing::warn!(job = %id, "the job is no longer this instance's; its end here is not recorded");
-        } else {
-            let result = outcome.result.clone();
-            match self.store.finish(id, &self.owner, now_ms(), outcome).await {
-                Ok(true) => {
-                    let wall_time_s = live.started.elapsed().as_secs_f64();
-                    tracing::info!(job = %id, status = status.name(), wall_time_s, "job ended");
-                    *live.result.lock().unwrap_or_else(PoisonError::into_inner) = result;
-                    live.status.send_replace(status);
-                }
-                Ok(false) => tracing::warn!(job = %id, "lost the job's lease; its end here is not recorded"),
-                Err(e) => tracing::error!(
-                    job = %id,
-                    error = %e,
-                    "cannot store the end of the job; it runs again once its lease lapses"
-                ),
-            }
-        }
-        self.live().remove(id);
-        self.changed();
-    }
-}
-
 impl Jobs {
     /// Starts the workers, the watchdog and the result sweep. Call it inside a tokio runtime:
     /// workers use that runtime to reach the store.
@@ -355,6 +131,7 @@ impl Jobs {
             runtime: tokio::runtime::Handle::current(),
             owner: format!("{}-{}", std::process::id(), JobId::new()),
             doorbell: Doorbell::new(workers),
+            handoff: Arc::new(Handoff::new(workers)),
             running: AtomicUsize::new(0),
             particle_steps: AtomicU64::new(0),
             busy_nanos: AtomicU64::new(0),
@@ -414,12 +191,33 @@ impl Jobs {
 
     /// Admits and queues a scene, or finds the earlier job with the same idempotency key.
     pub async fn submit(&self, submission: Submission) -> Result<Submitted, SubmitError> {
+        self.queue(submission, false).await.map(|(submitted, _)| submitted)
+    }
+
+    /// Admits and queues a scene like [`submit`](Self::submit), for a caller that waits for the
+    /// job on this instance (`POST /simulate`): the model compiled at admission is kept, while
+    /// the returned [`KeptModel`] lives, for this instance's worker to run instead of compiling
+    /// the stored scene again.
+    pub async fn submit_to_wait(
+        &self,
+        submission: Submission,
+    ) -> Result<(Submitted, KeptModel), SubmitError> {
+        self.queue(submission, true).await
+    }
+
+    /// Admits and queues a scene, keeping its compiled model for this instance's workers if
+    /// `hand_on`.
+    async fn queue(
+        &self,
+        submission: Submission,
+        hand_on: bool,
+    ) -> Result<(Submitted, KeptModel), SubmitError> {
         let Submission { scene, document, fingerprint, idempotency_key, max_work } = submission;
         let idempotency = idempotency_key.map(|key| Idempotency { key, fingerprint });
         if let Some(key) = &idempotency
             && let Some(earlier) = self.shared.store.find_by_key(&key.key).await?
         {
-            return repeat_of(earlier, key);
+            return repeat_of(earlier, key).map(|submitted| (submitted, KeptModel::NONE));
         }
 
         // A full queue refuses before any work.
@@ -433,9 +231,11 @@ impl Jobs {
             return Err(SubmitError::QueueFull);
         }
         // Admission counts particles and springs, then compiles (which allocates them), so it
-        // runs off the async threads.
-        let (plan, cost) = self
-            .admitting(move |limits| limits.admit(&scene).map(|a| (a.plan, a.cost)))
+        // runs off the async threads; the model is dropped there too unless it is handed on.
+        let (plan, cost, compiled) = self
+            .admitting(move |limits| {
+                limits.admit(&scene).map(|a| (a.plan, a.cost, hand_on.then_some(a.compiled)))
+            })
             .await?
             .map_err(SubmitError::OverLimit)?;
         if let Some(budget) = max_work
@@ -452,6 +252,8 @@ impl Jobs {
         }
 
         let id = JobId::new();
+        // Kept before the insert, so a worker that claims the job at once finds it.
+        let kept = compiled.map_or(KeptModel::NONE, |compiled| shared.handoff.keep(&id, compiled));
         let record = JobRecord::queued(id.clone(), plan, idempotency.clone());
         match shared.store.insert(record.clone(), &document.to_string()).await? {
             Inserted::New => {}
@@ -459,13 +261,14 @@ impl Jobs {
                 return repeat_of(
                     *earlier,
                     idempotency.as_ref().expect("only a keyed job can find its key taken"),
-                );
+                )
+                .map(|submitted| (submitted, KeptModel::NONE));
             }
         }
         drop(admitting);
         shared.doorbell.ring();
         tracing::info!(job = %id, particles = plan.particles, steps = plan.steps, "job queued");
-        Ok(Submitted { job: record, repeated: false })
+        Ok((Submitted { job: record, repeated: false }, kept))
     }
 
     /// The job, with its live progress if it is running here.
@@ -721,29 +524,60 @@ fn repeat_of(earlier: JobRecord, key: &Idempotency) -> Result<Submitted, SubmitE
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::jobs::store::MemoryStore;
+    use crate::scene::Compiled;
 
-    #[test]
-    fn rings_are_counted_up_to_the_number_of_workers() {
-        let bell = Doorbell::new(2);
-        assert!(!bell.wait(Duration::ZERO), "nothing rang yet");
-        for _ in 0..10 {
-            bell.ring();
-        }
-        // Ten jobs queued while both workers were busy send at most two of them to the store.
-        assert!(bell.wait(Duration::ZERO));
-        assert!(bell.wait(Duration::ZERO));
-        assert!(!bell.wait(Duration::ZERO));
+    /// A job system with one worker that notes the particles of every model it runs.
+    fn noting_particles() -> (Jobs, Arc<Mutex<Vec<usize>>>) {
+        let ran = Arc::new(Mutex::new(Vec::new()));
+        let noted = Arc::clone(&ran);
+        let config = JobsConfig {
+            workers: 1,
+            before_run: Some(Arc::new(move |compiled: &Compiled| {
+                noted.lock().unwrap().push(compiled.model.particle_count());
+            })),
+            ..JobsConfig::default()
+        };
+        (Jobs::start(Arc::new(MemoryStore::new()), config), ran)
     }
 
-    #[test]
-    fn a_ring_wakes_a_waiting_worker() {
-        let bell = Arc::new(Doorbell::new(1));
-        let waiter = {
-            let bell = Arc::clone(&bell);
-            // Far longer than any test runs: the wait can only end by the ring.
-            std::thread::spawn(move || bell.wait(Duration::from_secs(24 * 3600)))
+    /// A submission whose stored document (a chain of 7) differs from its scene (a chain of 3),
+    /// so the particles the worker runs tell which model it ran: the one compiled at admission
+    /// (3) or the stored document compiled by the worker (7).
+    fn telling_submission() -> Submission {
+        let chain = |count: u32| {
+            serde_json::json!({"duration": 0.01, "dt": 0.01, "error_estimate": "none",
+                               "bodies": [{"type": "chain", "count": count}]})
         };
-        bell.ring();
-        assert!(waiter.join().unwrap(), "the worker was woken by the ring");
+        Submission {
+            scene: Scene::from_value(chain(3)).unwrap(),
+            document: chain(7),
+            fingerprint: 0,
+            idempotency_key: None,
+            max_work: None,
+        }
+    }
+
+    #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+    async fn a_job_waited_for_here_runs_the_model_compiled_at_admission() {
+        let (jobs, ran) = noting_particles();
+        let (submitted, kept) = jobs.submit_to_wait(telling_submission()).await.unwrap();
+        let ended = jobs.wait(&submitted.job.id).await.unwrap().unwrap();
+        assert_eq!(ended.status, JobStatus::Succeeded);
+        assert_eq!(*ran.lock().unwrap(), [3], "the worker ran the admitted model, not a second compile");
+        assert!(!jobs.shared.handoff.holds(&submitted.job.id), "the worker took it");
+        drop(kept);
+        jobs.shutdown(Duration::ZERO).await;
+    }
+
+    #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+    async fn a_queued_job_runs_its_stored_scene_and_keeps_no_model() {
+        let (jobs, ran) = noting_particles();
+        let submitted = jobs.submit(telling_submission()).await.unwrap();
+        assert!(!jobs.shared.handoff.holds(&submitted.job.id));
+        let ended = jobs.wait(&submitted.job.id).await.unwrap().unwrap();
+        assert_eq!(ended.status, JobStatus::Succeeded);
+        assert_eq!(*ran.lock().unwrap(), [7], "the worker compiled the stored document");
+        jobs.shutdown(Duration::ZERO).await;
     }
 }

@@ -14,16 +14,27 @@
 //! still under way instead of reading back and parsing every result again.
 
 use std::collections::HashMap;
+use std::io;
 use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
 
 use bytes::Bytes;
 use serde_json::Value;
 use thiserror::Error;
 
-use super::{JobId, JobStatus, Jobs, StoreError, Submission, SubmitError, now_ms};
+use super::id::JobId;
+use super::limits::Limits;
+use super::record::now_ms;
+use super::service::{Jobs, Submission, SubmitError};
+use super::status::JobStatus;
+use super::store::StoreError;
 use crate::output::{Format, read_json};
 use crate::scene::{Field, FieldError, FrameSelection, Scene};
-use crate::sweep::{Outcome, Sweep, SweepError, Table};
+use crate::sweep::{Outcome, Sweep, SweepError, Table, write_csv, write_svg};
+
+/// Why a sweep document is not a sweep that can run: not JSON, invalid pointers or values, or
+/// more variants than allowed. The sweep module's own error, under the name the job system gives
+/// it, so that the API need not reach past the job system for it.
+pub use crate::sweep::SweepError as SweepDocumentError;
 
 /// One sweep submitted as jobs.
 #[derive(Debug)]
@@ -70,6 +81,23 @@ pub struct SweepState {
     pub finished: usize,
     /// Runs in all (reference included).
     pub runs: usize,
+}
+
+impl SweepState {
+    /// The table as CSV: one row per run, the varied values first.
+    pub fn csv(&self) -> io::Result<Vec<u8>> {
+        let mut bytes = Vec::new();
+        write_csv(&self.table, &mut bytes)?;
+        Ok(bytes)
+    }
+
+    /// The work-precision plot of the table as SVG: error against wall time, log-log, one
+    /// series per integrator, under `title`.
+    pub fn svg(&self, title: &str) -> io::Result<Vec<u8>> {
+        let mut bytes = Vec::new();
+        write_svg(&self.table, title, &mut bytes)?;
+        Ok(bytes)
+    }
 }
 
 /// Why a sweep was refused.
@@ -289,7 +317,7 @@ fn assemble(record: &SweepRecord, fresh: Vec<(usize, StoredRun)>) -> SweepState 
 /// Every limit a run of `sweep` (read from `document`) exceeds when run for its table (final
 /// positions only), each at the `vary` entry to blame or at the base scene's field: what
 /// `POST /sweeps` refuses, for a sweep run elsewhere (`drape sweep`).
-pub fn sweep_over_limit(document: &Value, sweep: &Sweep, limits: &super::Limits) -> Vec<FieldError> {
+pub fn sweep_over_limit(document: &Value, sweep: &Sweep, limits: &Limits) -> Vec<FieldError> {
     let mut sweep = sweep.clone();
     sweep.reference.iter_mut().for_each(keep_final_positions);
     sweep.variants.iter_mut().for_each(|v| keep_final_positions(&mut v.scene));
@@ -298,10 +326,7 @@ pub fn sweep_over_limit(document: &Value, sweep: &Sweep, limits: &super::Limits)
 
 /// A scene as a sweep runs it for its table, admitted under `limits` (with its self-collision
 /// cap set), or the limits it exceeds.
-pub fn admit_for_table(
-    scene: &Scene,
-    limits: &super::Limits,
-) -> Result<crate::scene::Compiled, Vec<FieldError>> {
+pub fn admit_for_table(scene: &Scene, limits: &Limits) -> Result<crate::scene::Compiled, Vec<FieldError>> {
     let mut scene = scene.clone();
     keep_final_positions(&mut scene);
     limits.admit(&scene).map(|admitted| admitted.compiled)
@@ -320,7 +345,7 @@ fn vary_lists(document: &Value) -> Vec<(String, Vec<Value>)> {
 
 /// Every limit a run exceeds, at the `vary` entry whose value is to blame, or else at the base
 /// scene's (or reference's) field; each pointer is reported once.
-fn over_limit(sweep: &Sweep, vary_lists: &[(String, Vec<Value>)], limits: &super::Limits) -> Vec<FieldError> {
+fn over_limit(sweep: &Sweep, vary_lists: &[(String, Vec<Value>)], limits: &Limits) -> Vec<FieldError> {
     let mut problems: Vec<FieldError> = Vec::new();
     let mut report = |problem: FieldError| {
         if !problems.iter().any(|p| p.pointer == problem.pointer) {

@@ -9,7 +9,8 @@
 
 use thiserror::Error;
 
-use super::{Limits, Plan};
+use super::limits::Limits;
+use super::record::Plan;
 use crate::scene::{FieldError, Scene, SceneError};
 
 /// Why untrusted bytes do not make a run.

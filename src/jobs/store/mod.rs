@@ -16,12 +16,29 @@
 //! cannot be committed (a full disk) hands nothing over. A job claimed after `max_attempts`
 //! starts that never ended (each crashed or lost its instance) is not handed over but failed:
 //! it may be what crashes the instances. A job released at shutdown gets its attempt back.
+//!
+//! The backends are [`MemoryStore`], [`SqliteStore`] (the default) and [`PostgresStore`]
+//! (several instances, one queue); the two SQL ones share their statements (`sql`), and
+//! [`StoreUrl`] picks and opens one.
 
 use async_trait::async_trait;
 use bytes::Bytes;
 use thiserror::Error;
 
-use super::{Failure, JobId, JobRecord, JobStatus};
+mod memory;
+mod open;
+mod postgres;
+mod sql;
+mod sqlite;
+
+pub use memory::MemoryStore;
+pub use open::StoreUrl;
+pub use postgres::PostgresStore;
+pub use sqlite::SqliteStore;
+
+use crate::jobs::id::JobId;
+use crate::jobs::record::JobRecord;
+use crate::jobs::status::{Failure, JobStatus};
 
 /// A stored result: the encoded bytes and their media type.
 #[derive(Clone, Debug, PartialEq)]

@@ -22,8 +22,10 @@ use flate2::Compression;
 use flate2::read::DeflateDecoder;
 use flate2::write::DeflateEncoder;
 
-use super::store::StoreError;
-use super::{Failure, Idempotency, JobId, JobRecord, JobStatus, Plan};
+use super::StoreError;
+use crate::jobs::id::JobId;
+use crate::jobs::record::{Idempotency, JobRecord, Plan};
+use crate::jobs::status::{Failure, JobStatus};
 
 /// The columns of a job as [`JobRow`] reads them.
 pub(super) const COLUMNS: &str = "id, status, created_ms, started_ms, finished_ms, particles, springs, steps, \
@@ -263,7 +265,7 @@ macro_rules! sql_store {
                 job: $crate::jobs::JobRecord,
                 scene: &str,
             ) -> Result<$crate::jobs::Inserted, $crate::jobs::StoreError> {
-                use $crate::jobs::sql::{backend, int};
+                use $crate::jobs::store::sql::{backend, int};
                 let plan = &job.plan;
                 let inserted = sqlx::query(&self.sql.insert)
                     .bind(job.id.as_str())
@@ -296,12 +298,12 @@ macro_rules! sql_store {
                 &self,
                 id: &$crate::jobs::JobId,
             ) -> Result<Option<$crate::jobs::JobRecord>, $crate::jobs::StoreError> {
-                sqlx::query_as::<_, $crate::jobs::sql::JobRow>(&self.sql.get)
+                sqlx::query_as::<_, $crate::jobs::store::sql::JobRow>(&self.sql.get)
                     .bind(id.as_str())
                     .fetch_optional(&self.pool)
                     .await
-                    .map_err($crate::jobs::sql::backend)?
-                    .map($crate::jobs::sql::JobRow::into_record)
+                    .map_err($crate::jobs::store::sql::backend)?
+                    .map($crate::jobs::store::sql::JobRow::into_record)
                     .transpose()
             }
 
@@ -309,12 +311,12 @@ macro_rules! sql_store {
                 &self,
                 key: &str,
             ) -> Result<Option<$crate::jobs::JobRecord>, $crate::jobs::StoreError> {
-                sqlx::query_as::<_, $crate::jobs::sql::JobRow>(&self.sql.find_by_key)
+                sqlx::query_as::<_, $crate::jobs::store::sql::JobRow>(&self.sql.find_by_key)
                     .bind(key)
                     .fetch_optional(&self.pool)
                     .await
-                    .map_err($crate::jobs::sql::backend)?
-                    .map($crate::jobs::sql::JobRow::into_record)
+                    .map_err($crate::jobs::store::sql::backend)?
+                    .map($crate::jobs::store::sql::JobRow::into_record)
                     .transpose()
             }
 
@@ -322,15 +324,15 @@ macro_rules! sql_store {
                 &self,
                 page: $crate::jobs::Page,
             ) -> Result<Vec<$crate::jobs::JobRecord>, $crate::jobs::StoreError> {
-                use $crate::jobs::sql::int;
-                sqlx::query_as::<_, $crate::jobs::sql::JobRow>(&self.sql.list)
+                use $crate::jobs::store::sql::int;
+                sqlx::query_as::<_, $crate::jobs::store::sql::JobRow>(&self.sql.list)
                     .bind(int(page.limit.min(i64::MAX as u64)))
                     .bind(int(page.offset.min(i64::MAX as u64)))
                     .fetch_all(&self.pool)
                     .await
-                    .map_err($crate::jobs::sql::backend)?
+                    .map_err($crate::jobs::store::sql::backend)?
                     .into_iter()
-                    .map($crate::jobs::sql::JobRow::into_record)
+                    .map($crate::jobs::store::sql::JobRow::into_record)
                     .collect()
             }
 
@@ -340,7 +342,7 @@ macro_rules! sql_store {
                 let rows: Vec<(String, i64)> = sqlx::query_as(&self.sql.count_by_status)
                     .fetch_all(&self.pool)
                     .await
-                    .map_err($crate::jobs::sql::backend)?;
+                    .map_err($crate::jobs::store::sql::backend)?;
                 Ok($crate::jobs::JobStatus::ALL
                     .iter()
                     .map(|&status| {
@@ -354,7 +356,7 @@ macro_rules! sql_store {
                 let (n,): (i64,) = sqlx::query_as(&self.sql.count_queued)
                     .fetch_one(&self.pool)
                     .await
-                    .map_err($crate::jobs::sql::backend)?;
+                    .map_err($crate::jobs::store::sql::backend)?;
                 Ok(n as u64)
             }
 
@@ -364,7 +366,7 @@ macro_rules! sql_store {
                 now_ms: u64,
                 max_attempts: u32,
             ) -> Result<Option<$crate::jobs::Claim>, $crate::jobs::StoreError> {
-                use $crate::jobs::sql::{ClaimRow, JobRow, backend, int};
+                use $crate::jobs::store::sql::{ClaimRow, JobRow, backend, int};
                 use $crate::jobs::{Claim, Claimed, StoreError, attempts_exhausted};
                 let mut tx = self.pool.begin().await.map_err(backend)?;
                 // `fetch_all` runs the statement to its end inside the transaction.
@@ -406,7 +408,7 @@ macro_rules! sql_store {
                 lease: &$crate::jobs::Lease,
                 steps_done: u64,
             ) -> Result<$crate::jobs::Renewed, $crate::jobs::StoreError> {
-                use $crate::jobs::sql::{backend, int};
+                use $crate::jobs::store::sql::{backend, int};
                 let row: Option<(bool,)> = sqlx::query_as(&self.sql.renew)
                     .bind(int(lease.until_ms))
                     .bind(int(steps_done))
@@ -428,7 +430,7 @@ macro_rules! sql_store {
                 finished_ms: u64,
                 outcome: $crate::jobs::Outcome,
             ) -> Result<bool, $crate::jobs::StoreError> {
-                use $crate::jobs::sql::{backend, compress, int};
+                use $crate::jobs::store::sql::{backend, compress, int};
                 let body = match &outcome.result {
                     Some(result) => {
                         let bytes = result.bytes.clone();
@@ -480,7 +482,7 @@ macro_rules! sql_store {
                     .bind(owner)
                     .execute(&self.pool)
                     .await
-                    .map_err($crate::jobs::sql::backend)?;
+                    .map_err($crate::jobs::store::sql::backend)?;
                 Ok(())
             }
 
@@ -491,7 +493,7 @@ macro_rules! sql_store {
                 message: &str,
             ) -> Result<Option<$crate::jobs::CancelRequest>, $crate::jobs::StoreError> {
                 use $crate::jobs::CancelRequest;
-                use $crate::jobs::sql::{JobRow, backend, int};
+                use $crate::jobs::store::sql::{JobRow, backend, int};
                 // Each statement is atomic; a job that changes between them (a claim, a release)
                 // is looked at again.
                 for _ in 0..3 {
@@ -532,20 +534,20 @@ macro_rules! sql_store {
                 message: &str,
             ) -> Result<Vec<$crate::jobs::JobId>, $crate::jobs::StoreError> {
                 let ids: Vec<(String,)> = sqlx::query_as(&self.sql.cancel_queued)
-                    .bind($crate::jobs::sql::int(now_ms))
+                    .bind($crate::jobs::store::sql::int(now_ms))
                     .bind(message)
                     .fetch_all(&self.pool)
                     .await
-                    .map_err($crate::jobs::sql::backend)?;
+                    .map_err($crate::jobs::store::sql::backend)?;
                 Ok(ids.into_iter().filter_map(|(id,)| $crate::jobs::JobId::parse(&id)).collect())
             }
 
             async fn drop_results(&self, before_ms: u64) -> Result<u64, $crate::jobs::StoreError> {
                 let dropped = sqlx::query(&self.sql.drop_results)
-                    .bind($crate::jobs::sql::int(before_ms))
+                    .bind($crate::jobs::store::sql::int(before_ms))
                     .execute(&self.pool)
                     .await
-                    .map_err($crate::jobs::sql::backend)?;
+                    .map_err($crate::jobs::store::sql::backend)?;
                 Ok(dropped.rows_affected())
             }
 
@@ -553,7 +555,7 @@ macro_rules! sql_store {
                 &self,
                 id: &$crate::jobs::JobId,
             ) -> Result<Option<$crate::jobs::StoredResult>, $crate::jobs::StoreError> {
-                use $crate::jobs::sql::{backend, decompress, media_type};
+                use $crate::jobs::store::sql::{backend, decompress, media_type};
                 let row: Option<(String, Vec<u8>)> = sqlx::query_as(&self.sql.result)
                     .bind(id.as_str())
                     .fetch_optional(&self.pool)

@@ -9,11 +9,13 @@ use std::sync::Mutex;
 
 use async_trait::async_trait;
 
-use super::store::{
+use super::{
     CancelRequest, Claim, Claimed, Inserted, JobStore, Lease, Outcome, Page, Renewed, StoreError,
     StoredResult, attempts_exhausted,
 };
-use super::{Failure, JobId, JobRecord, JobStatus};
+use crate::jobs::id::JobId;
+use crate::jobs::record::JobRecord;
+use crate::jobs::status::{Failure, JobStatus};
 
 /// Jobs in a map, in submission order.
 pub struct MemoryStore {
@@ -331,7 +333,7 @@ impl JobStore for MemoryStore {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::jobs::{Idempotency, Plan};
+    use crate::jobs::record::{Idempotency, Plan};
 
     fn job(key: &str) -> JobRecord {
         let plan = Plan { particles: 1, springs: 0, steps: 1, companion_steps: 0, dt: 1.0, duration: 1.0 };
