@@ -5,7 +5,7 @@
 //! Along a grid row the first ends of a family are consecutive particles and so are the second
 //! ends, so a family's springs on one row are two contiguous runs of each axis of the state: no
 //! index lists. A family's springs along a row are evaluated a vector block at a time
-//! ([`spring_blocks`](super::spring_blocks)) and each block's forces go straight into the force
+//! ([`spring_blocks`](crate::solver::spring_blocks)) and each block's forces go straight into the force
 //! accumulators of both ends' rows.
 //!
 //! Rows are visited in order. A spring of row `j` reaches rows `j` to `j + reach` only, so once
@@ -15,7 +15,7 @@
 //! and they stay in the first-level cache.
 //!
 //! Large grids are cut into bands of rows run by the solver's threads
-//! ([`parallel`](super::parallel)). A band owns its rows' forces and outputs; it recomputes the
+//! ([`parallel`](crate::solver::parallel)). A band owns its rows' forces and outputs; it recomputes the
 //! `reach` rows of springs above it that reach into it, and drops their contributions to rows it
 //! does not own. Every particle's force is therefore summed in the same order, by the same
 //! operations, whatever the number of bands: results do not depend on the thread count.
@@ -31,9 +31,13 @@
 
 use std::ops::Range;
 
-use super::model::{Model, Spring, SpringGrid};
-use super::spring_blocks::{self as blocks, LANES};
-use super::{Real, State, Vec3, Vectors, parallel};
+use crate::solver::model::{Model, Spring, SpringGrid};
+use crate::solver::parallel;
+use crate::solver::real::Real;
+use crate::solver::spring_blocks::{self as blocks, LANES};
+use crate::solver::state::State;
+use crate::solver::vec3::Vec3;
+use crate::solver::vectors::Vectors;
 
 /// One spring family of a grid: its stencil offsets and its parameters.
 #[derive(Clone, Copy, Debug)]
@@ -784,10 +788,10 @@ pub(crate) fn grids<T: Real>(model: &Model, springs: &[Spring<T>]) -> Vec<GridSp
 mod tests {
     use glam::DVec3;
 
-    use super::super::bodies::{Cloth, Orientation};
-    use super::super::model::SpringParams;
-    use super::super::springs;
     use super::*;
+    use crate::solver::bodies::{Cloth, Orientation};
+    use crate::solver::model::SpringParams;
+    use crate::solver::springs;
 
     /// A 13 × 5 cloth (13 is not a multiple of the vector width, so the tail loops run too) with
     /// springs of three different parameter sets, bent and moving so every spring is loaded.
@@ -984,7 +988,8 @@ mod tests {
 
     #[test]
     fn fused_symplectic_step_follows_the_spring_list_path() {
-        use super::super::{Config, IntegratorKind, Simulation};
+        use crate::solver::integrators::IntegratorKind;
+        use crate::solver::simulation::{Config, Simulation};
         let (mut model, _, _) = moving_cloth();
         model.pin(0);
         let config =
@@ -1010,7 +1015,8 @@ mod tests {
     /// Their NumPy, Taichi, Warp, Newton and C++ versions all end with the centre particle at
     /// y = 0.53204 and particle (0, 31) at y = 0.17014 (spread 4e-7 among them, in f32).
     fn peers_cloth_after_one_second<T: Real>() -> (f64, f64) {
-        use super::super::{Config, IntegratorKind, Simulation};
+        use crate::solver::integrators::IntegratorKind;
+        use crate::solver::simulation::{Config, Simulation};
         let n = 32;
         let springs = SpringParams { stiffness: 5000.0, damping: 0.5 };
         let mut model = Model::default();

@@ -10,17 +10,21 @@
 
 use glam::DVec3;
 
-use super::contacts::{Collider, Contacts};
-use super::diagnostics::{self, Energy};
-use super::dynamics::Dynamics;
-use super::integrators::{IntegratorKind, IntegratorSettings, LinearSolveStats, Stepper};
-use super::interrupt::Interrupt;
-use super::model::Model;
-use super::self_collision::{PairCapReached, SelfCollision};
-use super::stability::{self, Divergence, DivergenceReason};
-use super::strain_limit::StrainLimit;
-use super::wind::WindConfig;
-use super::{Real, State, Vec3, normals, parallel, springs};
+use crate::solver::contacts::{Collider, Contacts};
+use crate::solver::diagnostics::{self, Energy};
+use crate::solver::dynamics::Dynamics;
+use crate::solver::integrators::implicit::LinearSolveStats;
+use crate::solver::integrators::{IntegratorKind, IntegratorSettings, Stepper};
+use crate::solver::interrupt::Interrupt;
+use crate::solver::model::Model;
+use crate::solver::real::Real;
+use crate::solver::self_collision::{PairCapReached, SelfCollision};
+use crate::solver::stability::{self, Divergence, DivergenceReason};
+use crate::solver::state::State;
+use crate::solver::strain_limit::StrainLimit;
+use crate::solver::vec3::Vec3;
+use crate::solver::wind::WindConfig;
+use crate::solver::{normals, parallel, springs};
 
 /// Every stage name a simulation or a run can report, in the order a step runs them: the
 /// forces, then the constraints and contacts. `normals` is also the per-frame normals a run's
@@ -284,7 +288,7 @@ impl<T: Real> Simulation<T> {
         &self.stages
     }
 
-    /// The scene's explicit stability bound (see [`stable_step`](super::stable_step)), scaled for
+    /// The scene's explicit stability bound (see [`stable_step`](crate::solver::stability::stable_step)), scaled for
     /// this integrator, or `None` when nothing limits the step.
     pub fn stable_dt(&self) -> Option<f64> {
         self.stable_dt.map(|h| h * self.integrator.stability_factor())

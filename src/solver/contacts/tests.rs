@@ -4,7 +4,10 @@
 use glam::DVec3;
 
 use super::*;
-use crate::solver::{Config, IntegratorKind, Lattice, Model, Simulation, SpringParams};
+use crate::solver::bodies::Lattice;
+use crate::solver::integrators::IntegratorKind;
+use crate::solver::model::{Model, SpringParams};
+use crate::solver::simulation::{Config, Simulation};
 
 fn plane(friction: f64, restitution: f64) -> Collider {
     Collider { shape: Shape::Plane { point: DVec3::ZERO, normal: DVec3::Y }, friction, restitution }

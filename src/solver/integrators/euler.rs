@@ -1,7 +1,9 @@
 //! Explicit (forward) and symplectic (semi-implicit) Euler.
 
-use super::super::dynamics::Dynamics;
-use super::super::{Real, State, Vectors};
+use crate::solver::dynamics::Dynamics;
+use crate::solver::real::Real;
+use crate::solver::state::State;
+use crate::solver::vectors::Vectors;
 
 /// Scratch for the Euler methods: one acceleration per particle, and for a scene that symplectic
 /// Euler advances in one fused pass, the state that pass writes.

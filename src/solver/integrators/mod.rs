@@ -5,12 +5,14 @@
 //! every integrator leaves them exactly where they are.
 
 mod euler;
-mod implicit;
+pub(crate) mod implicit;
 mod rk4;
 mod verlet;
 
-use super::dynamics::Dynamics;
-use super::{Interrupt, Real, State};
+use crate::solver::dynamics::Dynamics;
+use crate::solver::interrupt::Interrupt;
+use crate::solver::real::Real;
+use crate::solver::state::State;
 
 pub use implicit::LinearSolveStats;
 
@@ -60,7 +62,7 @@ impl IntegratorKind {
     }
 
     /// The largest stable step relative to the symplectic-Euler bound of
-    /// [`stable_step`](super::stable_step) on an undamped oscillator: `2√2/ω` for RK4 against
+    /// [`stable_step`](crate::solver::stability::stable_step) on an undamped oscillator: `2√2/ω` for RK4 against
     /// `2/ω`. Explicit Euler is only stable where damping is strong enough and implicit Euler is
     /// stable at any step; both are given the plain bound.
     pub fn stability_factor(self) -> f64 {

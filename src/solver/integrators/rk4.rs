@@ -17,9 +17,12 @@
 
 use std::ops::Range;
 
-use super::super::dynamics::Dynamics;
-use super::super::grid_springs::AccelerationRows;
-use super::super::{Real, State, Vectors, parallel};
+use crate::solver::dynamics::Dynamics;
+use crate::solver::grid_springs::AccelerationRows;
+use crate::solver::parallel;
+use crate::solver::real::Real;
+use crate::solver::state::State;
+use crate::solver::vectors::Vectors;
 
 #[derive(Debug)]
 pub(crate) struct Rk4<T> {
@@ -174,8 +177,10 @@ impl<T: Real> AccelerationRows<T, 6> for Last<'_, T> {
 mod tests {
     use glam::DVec3;
 
-    use super::super::super::{Cloth, Model, Orientation, SpringParams, Vec3};
     use super::*;
+    use crate::solver::bodies::{Cloth, Orientation};
+    use crate::solver::model::{Model, SpringParams};
+    use crate::solver::vec3::Vec3;
 
     /// A 19 × 23 cloth (rows that are not whole vectors, and enough rows for several bands),
     /// bent and moving, with its dynamics.

@@ -7,8 +7,10 @@
 //! the end of one step is the one at the start of the next: one force evaluation per step. Damping
 //! forces see the predicted velocity `u + (h/2) a(x)` at the end of the step.
 
-use super::super::dynamics::Dynamics;
-use super::super::{Real, State, Vectors};
+use crate::solver::dynamics::Dynamics;
+use crate::solver::real::Real;
+use crate::solver::state::State;
+use crate::solver::vectors::Vectors;
 
 #[derive(Debug)]
 pub(crate) struct Verlet<T> {
