@@ -1,7 +1,7 @@
 //! Measures of a state: energies and strain. Computed only when asked for, never in a step.
 
 use crate::solver::dynamics::Dynamics;
-use crate::solver::real::Real;
+use crate::solver::math::real::Real;
 use crate::solver::springs;
 use crate::solver::state::State;
 

@@ -6,12 +6,12 @@
 //! normals), so an evaluation takes `&mut self`.
 
 use crate::solver::grid_springs::{self, AccelerationRows, BodyTerms, GridSprings};
+use crate::solver::math::real::Real;
+use crate::solver::math::vec3::Vec3;
+use crate::solver::math::vectors::Vectors;
 use crate::solver::model::{Model, Spring, SpringGrid};
-use crate::solver::real::Real;
 use crate::solver::spring_runs::SpringRuns;
 use crate::solver::state::State;
-use crate::solver::vec3::Vec3;
-use crate::solver::vectors::Vectors;
 use crate::solver::wind::{Wind, WindConfig};
 
 /// Particle masses and the forces acting on them.

@@ -31,13 +31,13 @@
 
 use std::ops::Range;
 
+use crate::solver::math::real::Real;
+use crate::solver::math::vec3::Vec3;
+use crate::solver::math::vectors::Vectors;
 use crate::solver::model::{Model, Spring, SpringGrid};
 use crate::solver::parallel;
-use crate::solver::real::Real;
 use crate::solver::spring_blocks::{self as blocks, LANES};
 use crate::solver::state::State;
-use crate::solver::vec3::Vec3;
-use crate::solver::vectors::Vectors;
 
 /// One spring family of a grid: its stencil offsets and its parameters.
 #[derive(Clone, Copy, Debug)]

@@ -45,12 +45,12 @@
 use std::ops::Range;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
+use crate::solver::math::real::Real;
+use crate::solver::math::vec3::Vec3;
+use crate::solver::math::vectors::Vectors;
 use crate::solver::model::Model;
 use crate::solver::parallel;
-use crate::solver::real::Real;
 use crate::solver::state::State;
-use crate::solver::vec3::Vec3;
-use crate::solver::vectors::Vectors;
 
 /// A cell's coordinates in cell sides, clamped to `i32` (a particle that far away has diverged;
 /// clamping only merges far cells, and the distance test still decides).

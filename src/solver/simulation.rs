@@ -16,13 +16,13 @@ use crate::solver::dynamics::Dynamics;
 use crate::solver::integrators::implicit::LinearSolveStats;
 use crate::solver::integrators::{IntegratorKind, IntegratorSettings, Stepper};
 use crate::solver::interrupt::Interrupt;
+use crate::solver::math::real::Real;
+use crate::solver::math::vec3::Vec3;
 use crate::solver::model::Model;
-use crate::solver::real::Real;
 use crate::solver::self_collision::{PairCapReached, SelfCollision};
 use crate::solver::stability::{self, Divergence, DivergenceReason};
 use crate::solver::state::State;
 use crate::solver::strain_limit::StrainLimit;
-use crate::solver::vec3::Vec3;
 use crate::solver::wind::WindConfig;
 use crate::solver::{normals, parallel, springs};
 

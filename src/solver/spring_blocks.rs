@@ -12,7 +12,7 @@
 //! `+f[k]`, however the springs are cut into blocks: the order in which forces are summed does
 //! not depend on where a block starts.
 
-use crate::solver::real::Real;
+use crate::solver::math::real::Real;
 use crate::solver::springs;
 
 /// Springs evaluated side by side: eight `f32` fill an AVX2 register.

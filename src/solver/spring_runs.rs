@@ -27,13 +27,13 @@
 
 use std::ops::Range;
 
+use crate::solver::math::real::Real;
+use crate::solver::math::vec3::Vec3;
+use crate::solver::math::vectors::Vectors;
 use crate::solver::model::Spring;
 use crate::solver::parallel;
-use crate::solver::real::Real;
 use crate::solver::spring_blocks::{self as blocks, LANES};
 use crate::solver::springs::direction;
-use crate::solver::vec3::Vec3;
-use crate::solver::vectors::Vectors;
 
 /// The shortest run worth a vector block; shorter ones are evaluated one spring at a time.
 const MIN_RUN: usize = 4;

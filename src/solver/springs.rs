@@ -4,11 +4,11 @@
 //! `f_i = [k (l - L) + c (v_j - v_i)·n] n` and `j` with `-f_i`. When `l` is zero the direction is
 //! undefined and the spring exerts no force, so coincident particles stay finite.
 
+use crate::solver::math::real::Real;
+use crate::solver::math::sym3::Sym3;
+use crate::solver::math::vec3::Vec3;
+use crate::solver::math::vectors::Vectors;
 use crate::solver::model::Spring;
-use crate::solver::real::Real;
-use crate::solver::sym3::Sym3;
-use crate::solver::vec3::Vec3;
-use crate::solver::vectors::Vectors;
 
 /// The unit direction from `i` to `j` and the distance, or `None` when they coincide.
 #[inline(always)]

@@ -20,11 +20,11 @@
 #![allow(clippy::neg_cmp_op_on_partial_ord, reason = "written so that a NaN fails each test")]
 
 use crate::solver::contacts::Contacts;
+use crate::solver::math::real::Real;
+use crate::solver::math::vec3::Vec3;
+use crate::solver::math::vectors::Vectors;
 use crate::solver::model::Spring;
-use crate::solver::real::Real;
 use crate::solver::state::State;
-use crate::solver::vec3::Vec3;
-use crate::solver::vectors::Vectors;
 
 /// The relative excess over the limit a converged sweep tolerates.
 pub const TOLERANCE: f64 = 1e-9;

@@ -17,10 +17,10 @@
 
 use glam::DVec3;
 
+use crate::solver::math::real::Real;
+use crate::solver::math::vec3::Vec3;
+use crate::solver::math::vectors::Vectors;
 use crate::solver::normals;
-use crate::solver::real::Real;
-use crate::solver::vec3::Vec3;
-use crate::solver::vectors::Vectors;
 
 /// How wind turns into forces.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -41,12 +41,12 @@ use glam::DVec3;
 
 use std::sync::atomic::{AtomicBool, Ordering};
 
+use crate::solver::math::real::Real;
+use crate::solver::math::vec3::Vec3;
+use crate::solver::math::vectors::Vectors;
 use crate::solver::parallel;
-use crate::solver::real::Real;
 use crate::solver::spring_blocks::{self as blocks, LANES};
 use crate::solver::state::State;
-use crate::solver::vec3::Vec3;
-use crate::solver::vectors::Vectors;
 
 /// The friction coefficient a collider has when the scene gives none.
 pub const DEFAULT_FRICTION: f64 = 0.3;

@@ -1,9 +1,9 @@
 //! Explicit (forward) and symplectic (semi-implicit) Euler.
 
 use crate::solver::dynamics::Dynamics;
-use crate::solver::real::Real;
+use crate::solver::math::real::Real;
+use crate::solver::math::vectors::Vectors;
 use crate::solver::state::State;
-use crate::solver::vectors::Vectors;
 
 /// Scratch for the Euler methods: one acceleration per particle, and for a scene that symplectic
 /// Euler advances in one fused pass, the state that pass writes.

@@ -11,7 +11,7 @@ mod verlet;
 
 use crate::solver::dynamics::Dynamics;
 use crate::solver::interrupt::Interrupt;
-use crate::solver::real::Real;
+use crate::solver::math::real::Real;
 use crate::solver::state::State;
 
 pub use implicit::LinearSolveStats;

@@ -19,10 +19,10 @@ use std::ops::Range;
 
 use crate::solver::dynamics::Dynamics;
 use crate::solver::grid_springs::AccelerationRows;
+use crate::solver::math::real::Real;
+use crate::solver::math::vectors::Vectors;
 use crate::solver::parallel;
-use crate::solver::real::Real;
 use crate::solver::state::State;
-use crate::solver::vectors::Vectors;
 
 #[derive(Debug)]
 pub(crate) struct Rk4<T> {
@@ -179,8 +179,8 @@ mod tests {
 
     use super::*;
     use crate::solver::bodies::{Cloth, Orientation};
+    use crate::solver::math::vec3::Vec3;
     use crate::solver::model::{Model, SpringParams};
-    use crate::solver::vec3::Vec3;
 
     /// A 19 × 23 cloth (rows that are not whole vectors, and enough rows for several bands),
     /// bent and moving, with its dynamics.

@@ -8,9 +8,9 @@
 //! forces see the predicted velocity `u + (h/2) a(x)` at the end of the step.
 
 use crate::solver::dynamics::Dynamics;
-use crate::solver::real::Real;
+use crate::solver::math::real::Real;
+use crate::solver::math::vectors::Vectors;
 use crate::solver::state::State;
-use crate::solver::vectors::Vectors;
 
 #[derive(Debug)]
 pub(crate) struct Verlet<T> {

@@ -18,10 +18,10 @@
 //! lengths.
 
 use crate::solver::arrays::Arrays;
+use crate::solver::math::real::Real;
+use crate::solver::math::sym3::Sym3;
+use crate::solver::math::vec3::Vec3;
 use crate::solver::parallel::in_bands;
-use crate::solver::real::Real;
-use crate::solver::sym3::Sym3;
-use crate::solver::vec3::Vec3;
 
 /// A vector field over the particles, one array per axis.
 pub(crate) type Field<T> = Arrays<T, 3>;

@@ -24,7 +24,7 @@ use super::{SolveOutcome, StepInput, dot_slices};
 use crate::solver::dynamics::Dynamics;
 use crate::solver::integrators::Interrupted;
 use crate::solver::interrupt::Interrupt;
-use crate::solver::real::Real;
+use crate::solver::math::real::Real;
 
 #[derive(Debug)]
 pub(crate) struct GridSolver<T> {

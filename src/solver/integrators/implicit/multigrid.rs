@@ -19,7 +19,7 @@
 //! other's transposes, so the cycle is a symmetric positive definite operator, as conjugate
 //! gradients needs.
 
-use crate::solver::real::Real;
+use crate::solver::math::real::Real;
 use std::any::Any;
 
 use super::grid_operator::{Family, Field, GridOperator, zero_field};

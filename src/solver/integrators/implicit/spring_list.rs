@@ -11,10 +11,10 @@ use super::{SolveOutcome, StepInput};
 use crate::solver::dynamics::Dynamics;
 use crate::solver::integrators::Interrupted;
 use crate::solver::interrupt::Interrupt;
-use crate::solver::real::Real;
+use crate::solver::math::real::Real;
+use crate::solver::math::sym3::Sym3;
+use crate::solver::math::vec3::Vec3;
 use crate::solver::springs::{direction, stiffness_block};
-use crate::solver::sym3::Sym3;
-use crate::solver::vec3::Vec3;
 
 #[derive(Debug)]
 pub(crate) struct SpringListSolver<T> {

@@ -2,8 +2,8 @@
 
 use std::ops::{Add, AddAssign, Mul};
 
-use crate::solver::real::Real;
-use crate::solver::vec3::Vec3;
+use super::real::Real;
+use super::vec3::Vec3;
 
 /// A symmetric 3×3 matrix stored as its six distinct entries.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
