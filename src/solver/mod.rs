@@ -8,7 +8,7 @@
 
 mod arrays;
 mod bodies;
-mod contacts;
+mod constraints;
 mod diagnostics;
 mod dynamics;
 mod grid_springs;
@@ -18,21 +18,20 @@ mod math;
 mod model;
 mod normals;
 pub mod parallel;
-mod self_collision;
 mod simulation;
 mod spring_blocks;
 mod spring_runs;
 mod springs;
 mod stability;
 mod state;
-mod strain_limit;
 mod wind;
 
 #[cfg(test)]
 mod tests;
 
 pub use bodies::{Chain, Cloth, Lattice, Mesh, Orientation, vertex_areas};
-pub use contacts::{Collider, DEFAULT_FRICTION, Shape};
+pub use constraints::contacts::{Collider, DEFAULT_FRICTION, Shape};
+pub use constraints::self_collision::{PairCapReached, SelfCollision, candidate_pairs};
 pub use diagnostics::Energy;
 pub use dynamics::Dynamics;
 pub use integrators::{IntegratorKind, IntegratorSettings, LinearSolveStats};
@@ -41,7 +40,6 @@ pub use math::real::Real;
 pub use math::vec3::Vec3;
 pub use math::vectors::Vectors;
 pub use model::{Model, Spring, SpringGrid, SpringKind, SpringParams};
-pub use self_collision::{PairCapReached, SelfCollision, candidate_pairs};
 pub use simulation::{Config, STAGE_NAMES, Simulation, StepError};
 pub use stability::{Divergence, DivergenceReason, stable_step};
 pub use state::State;

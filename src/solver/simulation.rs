@@ -10,7 +10,9 @@
 
 use glam::DVec3;
 
-use crate::solver::contacts::{Collider, Contacts};
+use crate::solver::constraints::contacts::{Collider, Contacts};
+use crate::solver::constraints::self_collision::{PairCapReached, SelfCollision};
+use crate::solver::constraints::strain_limit::StrainLimit;
 use crate::solver::diagnostics::{self, Energy};
 use crate::solver::dynamics::Dynamics;
 use crate::solver::integrators::implicit::LinearSolveStats;
@@ -19,10 +21,8 @@ use crate::solver::interrupt::Interrupt;
 use crate::solver::math::real::Real;
 use crate::solver::math::vec3::Vec3;
 use crate::solver::model::Model;
-use crate::solver::self_collision::{PairCapReached, SelfCollision};
 use crate::solver::stability::{self, Divergence, DivergenceReason};
 use crate::solver::state::State;
-use crate::solver::strain_limit::StrainLimit;
 use crate::solver::wind::WindConfig;
 use crate::solver::{normals, parallel, springs};
 

@@ -19,7 +19,7 @@
 
 #![allow(clippy::neg_cmp_op_on_partial_ord, reason = "written so that a NaN fails each test")]
 
-use crate::solver::contacts::Contacts;
+use super::contacts::Contacts;
 use crate::solver::math::real::Real;
 use crate::solver::math::vec3::Vec3;
 use crate::solver::math::vectors::Vectors;
