@@ -1,8 +1,8 @@
 //! Measures of a state: energies and strain. Computed only when asked for, never in a step.
 
-use crate::solver::dynamics::Dynamics;
+use crate::solver::forces::dynamics::Dynamics;
+use crate::solver::forces::springs;
 use crate::solver::math::real::Real;
-use crate::solver::springs;
 use crate::solver::state::State;
 
 /// The mechanical energy of a state, in joules.

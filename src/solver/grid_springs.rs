@@ -5,7 +5,7 @@
 //! Along a grid row the first ends of a family are consecutive particles and so are the second
 //! ends, so a family's springs on one row are two contiguous runs of each axis of the state: no
 //! index lists. A family's springs along a row are evaluated a vector block at a time
-//! ([`spring_blocks`](crate::solver::spring_blocks)) and each block's forces go straight into the force
+//! ([`spring_blocks`](crate::solver::forces::spring_blocks)) and each block's forces go straight into the force
 //! accumulators of both ends' rows.
 //!
 //! Rows are visited in order. A spring of row `j` reaches rows `j` to `j + reach` only, so once
@@ -31,12 +31,12 @@
 
 use std::ops::Range;
 
+use crate::solver::forces::spring_blocks::{self as blocks, LANES};
 use crate::solver::math::real::Real;
 use crate::solver::math::vec3::Vec3;
 use crate::solver::math::vectors::Vectors;
 use crate::solver::model::{Model, Spring, SpringGrid};
 use crate::solver::parallel;
-use crate::solver::spring_blocks::{self as blocks, LANES};
 use crate::solver::state::State;
 
 /// One spring family of a grid: its stencil offsets and its parameters.
@@ -790,8 +790,8 @@ mod tests {
 
     use super::*;
     use crate::solver::bodies::{Cloth, Orientation};
+    use crate::solver::forces::springs;
     use crate::solver::model::SpringParams;
-    use crate::solver::springs;
 
     /// A 13 × 5 cloth (13 is not a multiple of the vector width, so the tail loops run too) with
     /// springs of three different parameter sets, bent and moving so every spring is loaded.

@@ -14,7 +14,9 @@ use crate::solver::constraints::contacts::{Collider, Contacts};
 use crate::solver::constraints::self_collision::{PairCapReached, SelfCollision};
 use crate::solver::constraints::strain_limit::StrainLimit;
 use crate::solver::diagnostics::{self, Energy};
-use crate::solver::dynamics::Dynamics;
+use crate::solver::forces::dynamics::Dynamics;
+use crate::solver::forces::springs;
+use crate::solver::forces::wind::WindConfig;
 use crate::solver::integrators::implicit::LinearSolveStats;
 use crate::solver::integrators::{IntegratorKind, IntegratorSettings, Stepper};
 use crate::solver::interrupt::Interrupt;
@@ -23,8 +25,7 @@ use crate::solver::math::vec3::Vec3;
 use crate::solver::model::Model;
 use crate::solver::stability::{self, Divergence, DivergenceReason};
 use crate::solver::state::State;
-use crate::solver::wind::WindConfig;
-use crate::solver::{normals, parallel, springs};
+use crate::solver::{normals, parallel};
 
 /// Every stage name a simulation or a run can report, in the order a step runs them: the
 /// forces, then the constraints and contacts. `normals` is also the per-frame normals a run's

@@ -1,6 +1,6 @@
 //! Explicit (forward) and symplectic (semi-implicit) Euler.
 
-use crate::solver::dynamics::Dynamics;
+use crate::solver::forces::dynamics::Dynamics;
 use crate::solver::math::real::Real;
 use crate::solver::math::vectors::Vectors;
 use crate::solver::state::State;

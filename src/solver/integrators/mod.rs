@@ -9,7 +9,7 @@ pub(crate) mod implicit;
 mod rk4;
 mod verlet;
 
-use crate::solver::dynamics::Dynamics;
+use crate::solver::forces::dynamics::Dynamics;
 use crate::solver::interrupt::Interrupt;
 use crate::solver::math::real::Real;
 use crate::solver::state::State;

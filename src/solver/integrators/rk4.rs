@@ -17,7 +17,7 @@
 
 use std::ops::Range;
 
-use crate::solver::dynamics::Dynamics;
+use crate::solver::forces::dynamics::Dynamics;
 use crate::solver::grid_springs::AccelerationRows;
 use crate::solver::math::real::Real;
 use crate::solver::math::vectors::Vectors;

@@ -7,7 +7,7 @@
 //! the end of one step is the one at the start of the next: one force evaluation per step. Damping
 //! forces see the predicted velocity `u + (h/2) a(x)` at the end of the step.
 
-use crate::solver::dynamics::Dynamics;
+use crate::solver::forces::dynamics::Dynamics;
 use crate::solver::math::real::Real;
 use crate::solver::math::vectors::Vectors;
 use crate::solver::state::State;

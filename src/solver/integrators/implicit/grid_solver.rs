@@ -21,7 +21,7 @@ use rayon::prelude::*;
 use super::grid_operator::{Family, Field, GridOperator, RightHandSide, zero_field};
 use super::multigrid::Multigrid;
 use super::{SolveOutcome, StepInput, dot_slices};
-use crate::solver::dynamics::Dynamics;
+use crate::solver::forces::dynamics::Dynamics;
 use crate::solver::integrators::Interrupted;
 use crate::solver::interrupt::Interrupt;
 use crate::solver::math::real::Real;

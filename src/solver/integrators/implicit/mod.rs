@@ -31,7 +31,7 @@ mod spring_list;
 mod tests;
 
 use super::{IntegratorSettings, Interrupted};
-use crate::solver::dynamics::Dynamics;
+use crate::solver::forces::dynamics::Dynamics;
 use crate::solver::interrupt::Interrupt;
 use crate::solver::math::real::Real;
 use crate::solver::math::vectors::Vectors;

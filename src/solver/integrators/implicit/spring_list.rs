@@ -8,13 +8,13 @@
 
 use super::grid_operator::Field;
 use super::{SolveOutcome, StepInput};
-use crate::solver::dynamics::Dynamics;
+use crate::solver::forces::dynamics::Dynamics;
+use crate::solver::forces::springs::{direction, stiffness_block};
 use crate::solver::integrators::Interrupted;
 use crate::solver::interrupt::Interrupt;
 use crate::solver::math::real::Real;
 use crate::solver::math::sym3::Sym3;
 use crate::solver::math::vec3::Vec3;
-use crate::solver::springs::{direction, stiffness_block};
 
 #[derive(Debug)]
 pub(crate) struct SpringListSolver<T> {

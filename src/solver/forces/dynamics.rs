@@ -5,14 +5,14 @@
 //! A force that a scene does not have is `None` and costs nothing. Wind keeps scratch (vertex
 //! normals), so an evaluation takes `&mut self`.
 
+use super::spring_runs::SpringRuns;
+use super::wind::{Wind, WindConfig};
 use crate::solver::grid_springs::{self, AccelerationRows, BodyTerms, GridSprings};
 use crate::solver::math::real::Real;
 use crate::solver::math::vec3::Vec3;
 use crate::solver::math::vectors::Vectors;
 use crate::solver::model::{Model, Spring, SpringGrid};
-use crate::solver::spring_runs::SpringRuns;
 use crate::solver::state::State;
-use crate::solver::wind::{Wind, WindConfig};
 
 /// Particle masses and the forces acting on them.
 #[derive(Clone, Debug)]

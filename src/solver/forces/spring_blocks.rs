@@ -1,10 +1,10 @@
 //! Blocks of [`LANES`] springs evaluated side by side: the vector kernel of the fast force passes.
 //!
 //! The grid pass ([`grid_springs`](crate::solver::grid_springs)) and the run pass
-//! ([`spring_runs`](crate::solver::spring_runs)) both evaluate springs whose first ends are consecutive
+//! ([`spring_runs`](crate::solver::forces::spring_runs)) both evaluate springs whose first ends are consecutive
 //! particles and whose second ends are too. They read a block's ends straight from the state's
 //! axes into fixed-size arrays, compute the block's forces lane by lane with the branch-free
-//! formula of [`springs`](crate::solver::springs), and add them into force accumulators: code the
+//! formula of [`springs`](crate::solver::forces::springs), and add them into force accumulators: code the
 //! compiler turns into full-width vector instructions, with no index lists and no remainder loop.
 //!
 //! A block's second ends take their forces before its first ends. When both ends lie on the
@@ -12,8 +12,8 @@
 //! `+f[k]`, however the springs are cut into blocks: the order in which forces are summed does
 //! not depend on where a block starts.
 
+use super::springs;
 use crate::solver::math::real::Real;
-use crate::solver::springs;
 
 /// Springs evaluated side by side: eight `f32` fill an AVX2 register.
 pub(crate) const LANES: usize = 8;

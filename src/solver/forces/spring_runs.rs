@@ -22,18 +22,18 @@
 //! with an end inside it, recomputing those that cross its border, and keeps only the
 //! contributions to its own particles. The order in which a particle sums its forces is the one
 //! above whatever the band count, so results do not depend on the number of threads. The result
-//! is the spring-list force of [`springs`](crate::solver::springs) summed in a different, fixed order:
+//! is the spring-list force of [`springs`](crate::solver::forces::springs) summed in a different, fixed order:
 //! equal to it up to rounding.
 
 use std::ops::Range;
 
+use super::spring_blocks::{self as blocks, LANES};
+use super::springs::direction;
 use crate::solver::math::real::Real;
 use crate::solver::math::vec3::Vec3;
 use crate::solver::math::vectors::Vectors;
 use crate::solver::model::Spring;
 use crate::solver::parallel;
-use crate::solver::spring_blocks::{self as blocks, LANES};
-use crate::solver::springs::direction;
 
 /// The shortest run worth a vector block; shorter ones are evaluated one spring at a time.
 const MIN_RUN: usize = 4;
@@ -339,8 +339,8 @@ mod tests {
 
     use super::*;
     use crate::solver::bodies::{Chain, Cloth, Lattice, Mesh, Orientation};
+    use crate::solver::forces::springs;
     use crate::solver::model::{Model, SpringParams};
-    use crate::solver::springs;
 
     const STIFF: SpringParams = SpringParams { stiffness: 900.0, damping: 0.3 };
     const SOFT: SpringParams = SpringParams { stiffness: 50.0, damping: 0.05 };
