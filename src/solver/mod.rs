@@ -11,7 +11,6 @@ mod bodies;
 mod constraints;
 mod diagnostics;
 mod forces;
-mod grid_springs;
 mod integrators;
 mod interrupt;
 mod math;

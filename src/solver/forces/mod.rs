@@ -3,7 +3,9 @@
 //! blocks along runs of particles ([`spring_runs`]) or along the rows of a cloth grid, and wind
 //! on the surface triangles.
 
+pub(crate) mod body;
 pub(crate) mod dynamics;
+pub(crate) mod grid;
 pub(crate) mod spring_blocks;
 pub(crate) mod spring_runs;
 pub(crate) mod springs;

@@ -1,5 +1,6 @@
 //! Explicit (forward) and symplectic (semi-implicit) Euler.
 
+use super::fused_symplectic;
 use crate::solver::forces::dynamics::Dynamics;
 use crate::solver::math::real::Real;
 use crate::solver::math::vectors::Vectors;
@@ -52,7 +53,7 @@ impl<T: Real> Euler<T> {
         h: T,
     ) -> Option<(T, T)> {
         if let Some(next) = &mut self.next {
-            let sums = dynamics.symplectic_step(state, next, h);
+            let sums = fused_symplectic::step(dynamics, state, next, h);
             std::mem::swap(state, next);
             return sums;
         }

@@ -5,6 +5,7 @@
 //! every integrator leaves them exactly where they are.
 
 mod euler;
+pub(crate) mod fused_symplectic;
 pub(crate) mod implicit;
 mod rk4;
 mod verlet;

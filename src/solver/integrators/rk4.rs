@@ -18,7 +18,7 @@
 use std::ops::Range;
 
 use crate::solver::forces::dynamics::Dynamics;
-use crate::solver::grid_springs::AccelerationRows;
+use crate::solver::forces::grid::sinks::AccelerationRows;
 use crate::solver::math::real::Real;
 use crate::solver::math::vectors::Vectors;
 use crate::solver::parallel;
@@ -105,7 +105,10 @@ impl<T: Real> Pass<'_, T> {
         update: &impl AccelerationRows<T, 6>,
     ) {
         let Some(forces) = self.forces.as_mut() else {
-            self.dynamics.accelerations_by_rows(x, v, outputs, update);
+            // The scene's passes fuse: the stage's update runs row by row inside the force pass.
+            if let Some((grid, inputs)) = self.dynamics.fused_grid() {
+                grid.accelerations_by_rows(&inputs, x, v, outputs, update);
+            }
             return;
         };
         self.dynamics.forces(x, v, t, forces);
