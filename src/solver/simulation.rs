@@ -289,8 +289,8 @@ impl<T: Real> Simulation<T> {
         &self.stages
     }
 
-    /// The scene's explicit stability bound (see [`stable_step`](crate::solver::stability::stable_step)), scaled for
-    /// this integrator, or `None` when nothing limits the step.
+    /// The scene's explicit stability bound (see [`stable_step`](stability::stable_step)), scaled
+    /// for this integrator, or `None` when nothing limits the step.
     pub fn stable_dt(&self) -> Option<f64> {
         self.stable_dt.map(|h| h * self.integrator.stability_factor())
     }
@@ -389,7 +389,7 @@ fn lane_sums<'a, T: Real>(masses: &[T], [vx, vy, vz, x, y, z]: [&'a [T]; 6]) -> 
     (total(kinetic), total(position))
 }
 
-/// The lanes of the watch's sums: eight `f32` fill an AVX2 register.
+/// The lanes of the watch's sums: eight `f32` fill a 256-bit vector register.
 const LANES: usize = 8;
 
 #[cfg(test)]

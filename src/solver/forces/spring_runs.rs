@@ -18,11 +18,11 @@
 //! run (sorted by first particle), then the remaining springs in list order.
 //!
 //! Large scenes are cut into bands of particles run by the solver's threads
-//! ([`parallel`](crate::solver::parallel)). A band owns its particles' forces: it evaluates every spring
-//! with an end inside it, recomputing those that cross its border, and keeps only the
+//! ([`parallel`](crate::solver::parallel)). A band owns its particles' forces: it evaluates every
+//! spring with an end inside it, recomputing those that cross its border, and keeps only the
 //! contributions to its own particles. The order in which a particle sums its forces is the one
 //! above whatever the band count, so results do not depend on the number of threads. The result
-//! is the spring-list force of [`springs`](crate::solver::forces::springs) summed in a different, fixed order:
+//! is the spring-list force of [`springs`](super::springs) summed in a different, fixed order:
 //! equal to it up to rounding.
 
 use std::ops::Range;

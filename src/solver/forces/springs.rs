@@ -24,8 +24,8 @@ pub(crate) fn direction<T: Real>(d: Vec3<T>) -> Option<(Vec3<T>, T)> {
 }
 
 /// Adds every spring's force to `forces`, one spring at a time in list order: the definition
-/// that the solver's fast passes ([`grid_springs`](crate::solver::grid_springs),
-/// [`spring_runs`](crate::solver::forces::spring_runs)) are checked against.
+/// that the solver's fast passes ([`grid`](super::grid), [`spring_runs`](super::spring_runs)) are
+/// checked against.
 #[cfg(test)]
 pub fn add_forces<T: Real>(springs: &[Spring<T>], x: &Vectors<T>, v: &Vectors<T>, forces: &mut Vectors<T>) {
     for s in springs {

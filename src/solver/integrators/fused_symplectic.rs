@@ -4,8 +4,8 @@
 //! The sweep ([`kernel`](crate::solver::forces::grid::kernel)) hands each row its total force
 //! as soon as the row is complete; [`SymplecticUpdate`] turns it straight into the row's new
 //! velocities and positions, so the forces never leave the row accumulators. It also sums, down
-//! the columns, what the stability watch needs over the new state. The operations are those of
-//! the unfused step in [`euler`](super::euler), on the same values, so the results are the same.
+//! the columns, what the stability watch needs over the new state. The update's arithmetic is
+//! that of the unfused step in [`euler`](super::euler).
 
 use crate::solver::forces::body::BodyForce;
 use crate::solver::forces::dynamics::Dynamics;
@@ -77,7 +77,7 @@ impl<T: Real> GridSprings<T> {
 }
 
 /// A sink that turns each row's force straight into symplectic Euler's new state.
-pub(crate) struct SymplecticUpdate<'a, T> {
+struct SymplecticUpdate<'a, T> {
     /// The band's first particle within the body.
     offset: usize,
     nx: usize,

@@ -108,9 +108,10 @@ fn ring_row<T>(ring: &mut [Vec<T>; 3], row: usize, reach: usize, stride: usize) 
 ///
 /// The springs in whole vectors go through [`row_blocks`]. When both ends lie on the same row,
 /// the second ends' accumulators overlap the first ends', so their forces wait in `staged` and a
-/// second loop subtracts them (one loop updating both would not vectorise). The last, partial vector is a block padded with springs of zero
-/// force: the accumulators have room past the row, so no spring is left to a scalar remainder
-/// loop, one spring per instruction where a block takes eight.
+/// second loop subtracts them (one loop updating both would not vectorise). The last, partial
+/// vector is a block padded with springs of zero force: the accumulators have room past the row,
+/// so no spring is left to a scalar remainder loop, one spring per instruction where a block
+/// takes eight.
 #[allow(clippy::too_many_arguments)]
 #[inline]
 fn spring_row<'a, T: Real>(
