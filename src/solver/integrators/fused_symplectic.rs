@@ -6,6 +6,9 @@
 //! velocities and positions, so the forces never leave the row accumulators. It also sums, down
 //! the columns, what the stability watch needs over the new state. The update's arithmetic is
 //! that of the unfused step in [`euler`](super::euler).
+//!
+//! The sink's methods are `#[inline]` because the sweep that calls them lives in another module,
+//! hence another codegen unit, where they would otherwise stay calls.
 
 use crate::solver::forces::body::BodyForce;
 use crate::solver::forces::dynamics::Dynamics;
@@ -98,6 +101,7 @@ struct SymplecticUpdate<'a, T> {
 }
 
 impl<T: Real> RowSink<T> for SymplecticUpdate<'_, T> {
+    #[inline]
     fn start(&mut self, row: usize, force: [&mut [T]; 3]) {
         let body = BodyForce {
             offset: self.offset,
@@ -110,6 +114,7 @@ impl<T: Real> RowSink<T> for SymplecticUpdate<'_, T> {
         body.start(row, force);
     }
 
+    #[inline]
     fn finish(&mut self, row: usize, force: [&mut [T]; 3]) {
         let local = row * self.nx..(row + 1) * self.nx;
         let cells = self.offset + local.start..self.offset + local.end;

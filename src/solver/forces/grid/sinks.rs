@@ -1,6 +1,9 @@
 //! What a sweep does with each finished row of forces when no integrator is fused into it: add
 //! it to a forces array, or turn it into accelerations and hand them to an [`AccelerationRows`]
 //! (which is how an integrator's update is fused into the sweep).
+//!
+//! The sinks' methods are `#[inline]`: the sweep that calls them once per row lives in another
+//! module, hence another codegen unit, and without the hint they would stay calls there.
 
 use std::ops::Range;
 
@@ -21,6 +24,7 @@ pub(crate) trait AccelerationRows<T, const O: usize>: Sync {
 pub(super) struct Store;
 
 impl<T: Real> AccelerationRows<T, 3> for Store {
+    #[inline]
     fn take(&self, _: Range<usize>, force: [&[T]; 3], inverse_masses: &[T], outputs: [&mut [T]; 3]) {
         for (out, f) in outputs.into_iter().zip(force) {
             for ((a, &f), &w) in out.iter_mut().zip(f).zip(inverse_masses) {
@@ -38,6 +42,7 @@ pub(super) struct AddTo<'a, T> {
 }
 
 impl<T: Real> RowSink<T> for AddTo<'_, T> {
+    #[inline]
     fn start(&mut self, row: usize, force: [&mut [T]; 3]) {
         let cells = row * self.nx..(row + 1) * self.nx;
         for (f, out) in force.into_iter().zip(&self.out) {
@@ -45,6 +50,7 @@ impl<T: Real> RowSink<T> for AddTo<'_, T> {
         }
     }
 
+    #[inline]
     fn finish(&mut self, row: usize, force: [&mut [T]; 3]) {
         let cells = row * self.nx..(row + 1) * self.nx;
         for (out, f) in self.out.iter_mut().zip(force) {
@@ -66,10 +72,12 @@ pub(super) struct Accelerations<'a, T, U, const O: usize> {
 }
 
 impl<T: Real, U: AccelerationRows<T, O>, const O: usize> RowSink<T> for Accelerations<'_, T, U, O> {
+    #[inline]
     fn start(&mut self, row: usize, force: [&mut [T]; 3]) {
         self.body.start(row, force);
     }
 
+    #[inline]
     fn finish(&mut self, row: usize, force: [&mut [T]; 3]) {
         let nx = self.body.nx;
         let local = row * nx..(row + 1) * nx;
