@@ -17,7 +17,7 @@
 
 use std::ops::{Index, IndexMut};
 
-use super::Real;
+use crate::solver::math::real::Real;
 
 /// The bytes of a cache line and of a page, the granularities the layout staggers by.
 const LINE_BYTES: usize = 64;

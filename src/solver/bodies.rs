@@ -9,7 +9,7 @@ use std::ops::Range;
 
 use glam::DVec3;
 
-use super::model::{Model, SpringGrid, SpringKind, SpringParams};
+use crate::solver::model::{Model, SpringGrid, SpringKind, SpringParams};
 
 /// Whether a cloth starts flat in the x-z plane or hangs in the x-y plane.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -1,7 +1,9 @@
 //! Measures of a state: energies and strain. Computed only when asked for, never in a step.
 
-use super::dynamics::Dynamics;
-use super::{Real, State, springs};
+use crate::solver::forces::dynamics::Dynamics;
+use crate::solver::forces::springs;
+use crate::solver::math::real::Real;
+use crate::solver::state::State;
 
 /// The mechanical energy of a state, in joules.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]

@@ -8,44 +8,34 @@
 
 mod arrays;
 mod bodies;
-mod contacts;
+mod constraints;
 mod diagnostics;
-mod dynamics;
-mod grid_springs;
+mod forces;
 mod integrators;
 mod interrupt;
+mod math;
 mod model;
 mod normals;
 pub mod parallel;
-mod real;
-mod self_collision;
 mod simulation;
-mod spring_blocks;
-mod spring_runs;
-mod springs;
 mod stability;
 mod state;
-mod strain_limit;
-mod sym3;
-mod vec3;
-mod vectors;
-mod wind;
 
 #[cfg(test)]
 mod tests;
 
 pub use bodies::{Chain, Cloth, Lattice, Mesh, Orientation, vertex_areas};
-pub use contacts::{Collider, DEFAULT_FRICTION, Shape};
+pub use constraints::contacts::{Collider, DEFAULT_FRICTION, Shape};
+pub use constraints::self_collision::{PairCapReached, SelfCollision, candidate_pairs};
 pub use diagnostics::Energy;
-pub use dynamics::Dynamics;
+pub use forces::dynamics::Dynamics;
+pub use forces::wind::{Gust, WindConfig, WindModel};
 pub use integrators::{IntegratorKind, IntegratorSettings, LinearSolveStats};
 pub use interrupt::Interrupt;
+pub use math::real::Real;
+pub use math::vec3::Vec3;
+pub use math::vectors::Vectors;
 pub use model::{Model, Spring, SpringGrid, SpringKind, SpringParams};
-pub use real::Real;
-pub use self_collision::{PairCapReached, SelfCollision, candidate_pairs};
 pub use simulation::{Config, STAGE_NAMES, Simulation, StepError};
 pub use stability::{Divergence, DivergenceReason, stable_step};
 pub use state::State;
-pub use vec3::Vec3;
-pub use vectors::Vectors;
-pub use wind::{Gust, WindConfig, WindModel};

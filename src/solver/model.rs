@@ -1,8 +1,8 @@
 //! The particle system a scene builds, in `f64`, before it is compiled into a simulation.
 //!
 //! A [`Model`] is plain data: particle positions, velocities, masses and pins, the spring list and
-//! the surface triangles. Body builders ([`bodies`](super::bodies)) append to it; a
-//! [`Simulation`](super::Simulation) converts it once to its own precision and layout.
+//! the surface triangles. Body builders ([`bodies`](crate::solver::bodies)) append to it; a
+//! [`Simulation`](crate::solver::simulation::Simulation) converts it once to its own precision and layout.
 
 use std::ops::Range;
 

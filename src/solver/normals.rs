@@ -1,6 +1,8 @@
 //! Vertex normals of a triangle surface, area-weighted.
 
-use super::{Real, Vec3, Vectors};
+use crate::solver::math::real::Real;
+use crate::solver::math::vec3::Vec3;
+use crate::solver::math::vectors::Vectors;
 
 /// Writes the unit normal of every vertex: the normalised sum of the cross products of the
 /// triangles around it (so larger triangles weigh more). A vertex on no triangle, or whose

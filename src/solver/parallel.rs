@@ -1,11 +1,11 @@
 //! The solver's threads: one pool with a thread per core, and the rule for when a scene uses it.
 //!
 //! A large cloth's force pass is cut into bands of rows that threads of [`pool`] run side by side
-//! (see [`grid_springs`](super::grid_springs)), and the other springs into bands of particles
-//! (see [`spring_runs`](super::spring_runs)). Each band recomputes the few rows of springs it
-//! shares with its neighbours instead of exchanging partial sums, so every particle's force is
-//! summed in the same order whatever the number of bands: a result does not depend on how many
-//! threads computed it. A scene too small to pay for the hand-off stays in one band; a cloth
+//! (see [`grid`](crate::solver::forces::grid)), and the other springs into bands of particles
+//! (see [`spring_runs`](crate::solver::forces::spring_runs)). Each band recomputes the few rows of
+//! springs it shares with its neighbours instead of exchanging partial sums, so every particle's
+//! force is summed in the same order whatever the number of bands: a result does not depend on
+//! how many threads computed it. A scene too small to pay for the hand-off stays in one band; a cloth
 //! somewhat larger runs in bands only while another thread takes one ([`join_side_by_side`]
 //! tells). Passes that compute each row alone (the implicit solver's) cut their row-major arrays
 //! with [`in_bands`].

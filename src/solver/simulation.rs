@@ -10,17 +10,22 @@
 
 use glam::DVec3;
 
-use super::contacts::{Collider, Contacts};
-use super::diagnostics::{self, Energy};
-use super::dynamics::Dynamics;
-use super::integrators::{IntegratorKind, IntegratorSettings, LinearSolveStats, Stepper};
-use super::interrupt::Interrupt;
-use super::model::Model;
-use super::self_collision::{PairCapReached, SelfCollision};
-use super::stability::{self, Divergence, DivergenceReason};
-use super::strain_limit::StrainLimit;
-use super::wind::WindConfig;
-use super::{Real, State, Vec3, normals, parallel, springs};
+use crate::solver::constraints::contacts::{Collider, Contacts};
+use crate::solver::constraints::self_collision::{PairCapReached, SelfCollision};
+use crate::solver::constraints::strain_limit::StrainLimit;
+use crate::solver::diagnostics::{self, Energy};
+use crate::solver::forces::dynamics::Dynamics;
+use crate::solver::forces::springs;
+use crate::solver::forces::wind::WindConfig;
+use crate::solver::integrators::implicit::LinearSolveStats;
+use crate::solver::integrators::{IntegratorKind, IntegratorSettings, Stepper};
+use crate::solver::interrupt::Interrupt;
+use crate::solver::math::real::Real;
+use crate::solver::math::vec3::Vec3;
+use crate::solver::model::Model;
+use crate::solver::stability::{self, Divergence, DivergenceReason};
+use crate::solver::state::State;
+use crate::solver::{normals, parallel};
 
 /// Every stage name a simulation or a run can report, in the order a step runs them: the
 /// forces, then the constraints and contacts. `normals` is also the per-frame normals a run's
@@ -284,8 +289,8 @@ impl<T: Real> Simulation<T> {
         &self.stages
     }
 
-    /// The scene's explicit stability bound (see [`stable_step`](super::stable_step)), scaled for
-    /// this integrator, or `None` when nothing limits the step.
+    /// The scene's explicit stability bound (see [`stable_step`](stability::stable_step)), scaled
+    /// for this integrator, or `None` when nothing limits the step.
     pub fn stable_dt(&self) -> Option<f64> {
         self.stable_dt.map(|h| h * self.integrator.stability_factor())
     }
@@ -384,7 +389,7 @@ fn lane_sums<'a, T: Real>(masses: &[T], [vx, vy, vz, x, y, z]: [&'a [T]; 6]) -> 
     (total(kinetic), total(position))
 }
 
-/// The lanes of the watch's sums: eight `f32` fill an AVX2 register.
+/// The lanes of the watch's sums: eight `f32` fill a 256-bit vector register.
 const LANES: usize = 8;
 
 #[cfg(test)]

@@ -6,7 +6,7 @@
 //! `ω̂` and damping rate up to `ĉ` stays bounded under symplectic Euler for
 //! `h < 4 / (ĉ + √(ĉ² + 4ω̂²))`, which is `2/ω̂` without damping.
 
-use super::model::Model;
+use crate::solver::model::Model;
 
 /// The step bound of the module docs, in seconds, or `None` when nothing limits the step
 /// (no springs and no drag on any free particle).

@@ -1,6 +1,7 @@
 //! Where the particles are and how fast they move: the part of a simulation that a step changes.
 
-use super::{Real, Vectors};
+use crate::solver::math::real::Real;
+use crate::solver::math::vectors::Vectors;
 
 /// Positions and velocities, one entry per particle, each stored one array per axis.
 #[derive(Clone, Debug, Default)]

@@ -91,6 +91,9 @@ fn spring_error(integrator: IntegratorKind, damping: f64, dt: f64) -> f64 {
 
 use IntegratorKind::{ExplicitEuler, ImplicitEuler, Rk4, SymplecticEuler, Verlet};
 
+/// The expected values are the closed form evaluated independently: `0.1 cos 10` undamped,
+/// `0.1 · 11 e⁻¹⁰` at critical damping (c = 20), and the textbook under- and overdamped
+/// solutions at c = 2 and c = 50.
 #[test]
 fn closed_form_matches_the_published_values() {
     for (damping, expected) in [
@@ -113,6 +116,10 @@ fn rk4_follows_the_closed_form_at_every_damping() {
     }
 }
 
+/// The expected errors are each method's own update applied to `x'' = -ω² x` (a linear map)
+/// for 1000 steps of `hω = 0.01`, against the closed form: for RK4 the leading term
+/// `n (hω)⁵/120`, for implicit Euler the amplitude lost, `1 - (1 + (hω)²)^(-n/2)`; for Verlet and
+/// symplectic Euler the map iterated.
 #[test]
 fn each_integrator_has_its_known_error_at_one_millisecond() {
     for (integrator, expected) in
@@ -166,6 +173,8 @@ fn symplectic_euler_keeps_energy_bounded_without_drift() {
             last_period += deviation / window as f64;
         }
     }
+    // Symplectic Euler conserves a modified energy exactly; the true energy swings about it by at
+    // most `(hω/2) / (1 - hω/2)` of itself, 5.03e-3 at `hω = 0.01`.
     assert!(worst <= 5.1e-3, "energy strayed by {worst:.3e}");
     assert!(
         (last_period - first_period).abs() < 1e-6,
@@ -266,6 +275,8 @@ fn a_settled_chain_carries_the_weight_below_each_link() {
         assert!((tension / weight_below - 1.0).abs() < 1e-6, "link {link}: {tension} N vs {weight_below} N");
     }
     let length: f64 = (0..10).map(|l| (x.get(l + 1) - x.get(l)).length()).sum();
+    // Closed form: ten rest lengths of 0.1 m, each stretched by the weight below it over k,
+    // `Σ i · 0.01 · 9.81 / 100` for i = 1..=10.
     assert!((length / 1.053955 - 1.0).abs() < 1e-6, "total length {length}");
 }
 
@@ -418,7 +429,8 @@ fn check_pinned_cloth<T: Real>() {
                 == b.to_array().map(|c| c.to_f64().to_bits()))
         );
         // Springs and drag only dissipate: the total falls between any two samples, and by
-        // percents over the run (3.6 % for symplectic Euler over 1 s, 7.5 % for implicit Euler).
+        // percents over the run (3.6 % for symplectic Euler over 1 s, 7.5 % for implicit Euler, as
+        // recorded from this solver; the test asks only for 2 %).
         let (start, end) = (energies[0], *energies.last().unwrap());
         assert!(end < 0.98 * start, "{} {}: energy {start} -> {end}", T::NAME, integrator.name());
         for pair in energies.windows(2) {

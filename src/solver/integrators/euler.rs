@@ -1,7 +1,10 @@
 //! Explicit (forward) and symplectic (semi-implicit) Euler.
 
-use super::super::dynamics::Dynamics;
-use super::super::{Real, State, Vectors};
+use super::fused_symplectic;
+use crate::solver::forces::dynamics::Dynamics;
+use crate::solver::math::real::Real;
+use crate::solver::math::vectors::Vectors;
+use crate::solver::state::State;
 
 /// Scratch for the Euler methods: one acceleration per particle, and for a scene that symplectic
 /// Euler advances in one fused pass, the state that pass writes.
@@ -50,7 +53,7 @@ impl<T: Real> Euler<T> {
         h: T,
     ) -> Option<(T, T)> {
         if let Some(next) = &mut self.next {
-            let sums = dynamics.symplectic_step(state, next, h);
+            let sums = fused_symplectic::step(dynamics, state, next, h);
             std::mem::swap(state, next);
             return sums;
         }

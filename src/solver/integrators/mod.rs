@@ -3,14 +3,22 @@
 //! Each integrator owns the scratch buffers it needs, allocated once, so that a step allocates
 //! nothing. Pinned particles have zero inverse mass, hence zero acceleration and velocity, and
 //! every integrator leaves them exactly where they are.
+//!
+//! For a scene that is one cloth with no other force than gravity, drag and its springs, two
+//! integrators run their update inside the grid's force pass, row by row, rather than after it:
+//! symplectic Euler in [`fused_symplectic`], RK4's stages in [`rk4`]. The update's arithmetic is
+//! that of the unfused path; only the pass that holds it changes.
 
 mod euler;
-mod implicit;
+pub(crate) mod fused_symplectic;
+pub(crate) mod implicit;
 mod rk4;
 mod verlet;
 
-use super::dynamics::Dynamics;
-use super::{Interrupt, Real, State};
+use crate::solver::forces::dynamics::Dynamics;
+use crate::solver::interrupt::Interrupt;
+use crate::solver::math::real::Real;
+use crate::solver::state::State;
 
 pub use implicit::LinearSolveStats;
 
@@ -60,9 +68,9 @@ impl IntegratorKind {
     }
 
     /// The largest stable step relative to the symplectic-Euler bound of
-    /// [`stable_step`](super::stable_step) on an undamped oscillator: `2√2/ω` for RK4 against
-    /// `2/ω`. Explicit Euler is only stable where damping is strong enough and implicit Euler is
-    /// stable at any step; both are given the plain bound.
+    /// [`stable_step`](crate::solver::stability::stable_step) on an undamped oscillator: `2√2/ω`
+    /// for RK4 against `2/ω`. Explicit Euler is only stable where damping is strong enough and
+    /// implicit Euler is stable at any step; both are given the plain bound.
     pub fn stability_factor(self) -> f64 {
         match self {
             Self::Rk4 => std::f64::consts::SQRT_2,

@@ -17,9 +17,12 @@
 
 use std::ops::Range;
 
-use super::super::dynamics::Dynamics;
-use super::super::grid_springs::AccelerationRows;
-use super::super::{Real, State, Vectors, parallel};
+use crate::solver::forces::dynamics::Dynamics;
+use crate::solver::forces::grid::sinks::AccelerationRows;
+use crate::solver::math::real::Real;
+use crate::solver::math::vectors::Vectors;
+use crate::solver::parallel;
+use crate::solver::state::State;
 
 #[derive(Debug)]
 pub(crate) struct Rk4<T> {
@@ -102,7 +105,10 @@ impl<T: Real> Pass<'_, T> {
         update: &impl AccelerationRows<T, 6>,
     ) {
         let Some(forces) = self.forces.as_mut() else {
-            self.dynamics.accelerations_by_rows(x, v, outputs, update);
+            // The scene's passes fuse: the stage's update runs row by row inside the force pass.
+            if let Some((grid, inputs)) = self.dynamics.fused_grid() {
+                grid.accelerations_by_rows(&inputs, x, v, outputs, update);
+            }
             return;
         };
         self.dynamics.forces(x, v, t, forces);
@@ -174,8 +180,10 @@ impl<T: Real> AccelerationRows<T, 6> for Last<'_, T> {
 mod tests {
     use glam::DVec3;
 
-    use super::super::super::{Cloth, Model, Orientation, SpringParams, Vec3};
     use super::*;
+    use crate::solver::bodies::{Cloth, Orientation};
+    use crate::solver::math::vec3::Vec3;
+    use crate::solver::model::{Model, SpringParams};
 
     /// A 19 × 23 cloth (rows that are not whole vectors, and enough rows for several bands),
     /// bent and moving, with its dynamics.

@@ -7,8 +7,10 @@
 //! the end of one step is the one at the start of the next: one force evaluation per step. Damping
 //! forces see the predicted velocity `u + (h/2) a(x)` at the end of the step.
 
-use super::super::dynamics::Dynamics;
-use super::super::{Real, State, Vectors};
+use crate::solver::forces::dynamics::Dynamics;
+use crate::solver::math::real::Real;
+use crate::solver::math::vectors::Vectors;
+use crate::solver::state::State;
 
 #[derive(Debug)]
 pub(crate) struct Verlet<T> {

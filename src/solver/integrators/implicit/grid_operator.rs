@@ -17,10 +17,11 @@
 //! rediscretised on every other particle, with its own positions, lumped masses and doubled rest
 //! lengths.
 
-use super::super::super::Real;
-use super::super::super::arrays::Arrays;
-use super::super::super::parallel::in_bands;
-use super::super::super::sym3::Sym3;
+use crate::solver::arrays::Arrays;
+use crate::solver::math::real::Real;
+use crate::solver::math::sym3::Sym3;
+use crate::solver::math::vec3::Vec3;
+use crate::solver::parallel::in_bands;
 
 /// A vector field over the particles, one array per axis.
 pub(crate) type Field<T> = Arrays<T, 3>;
@@ -399,7 +400,7 @@ impl<T: Real> GridOperator<T> {
         match self.offsets.iter().position(|&o| o == offset) {
             Some(slot) => {
                 let [ux, uy, uz, sigma] = self.couplings[slot].arrays().map(|a| a[lower]);
-                let u = super::super::super::Vec3::new(ux, uy, uz);
+                let u = Vec3::new(ux, uy, uz);
                 (Sym3::outer(u) + Sym3::identity() * sigma) * -T::ONE
             }
             None => Sym3::ZERO,
@@ -628,7 +629,7 @@ mod tests {
                 let mut expected = [0.0; 3];
                 for q in neighbours {
                     let block = operator.block(p, q);
-                    let xq = super::super::super::super::Vec3::new(x[0][q], x[1][q], x[2][q]);
+                    let xq = Vec3::new(x[0][q], x[1][q], x[2][q]);
                     for (e, v) in expected.iter_mut().zip(block.apply(xq).to_array()) {
                         *e += v;
                     }

@@ -18,13 +18,13 @@ use std::any::{Any, TypeId};
 
 use rayon::prelude::*;
 
-use super::super::super::Interrupt;
-use super::super::super::Real;
-use super::super::super::dynamics::Dynamics;
-use super::super::Interrupted;
 use super::grid_operator::{Family, Field, GridOperator, RightHandSide, zero_field};
 use super::multigrid::Multigrid;
 use super::{SolveOutcome, StepInput, dot_slices};
+use crate::solver::forces::dynamics::Dynamics;
+use crate::solver::integrators::Interrupted;
+use crate::solver::interrupt::Interrupt;
+use crate::solver::math::real::Real;
 
 #[derive(Debug)]
 pub(crate) struct GridSolver<T> {

@@ -30,10 +30,12 @@ mod spring_list;
 #[cfg(test)]
 mod tests;
 
-use super::super::Interrupt;
-use super::super::dynamics::Dynamics;
-use super::super::{Real, State, Vectors};
 use super::{IntegratorSettings, Interrupted};
+use crate::solver::forces::dynamics::Dynamics;
+use crate::solver::interrupt::Interrupt;
+use crate::solver::math::real::Real;
+use crate::solver::math::vectors::Vectors;
+use crate::solver::state::State;
 use grid_operator::{Field, zero_field};
 use grid_solver::GridSolver;
 use spring_list::SpringListSolver;

@@ -19,11 +19,11 @@
 //! other's transposes, so the cycle is a symmetric positive definite operator, as conjugate
 //! gradients needs.
 
-use super::super::super::Real;
+use crate::solver::math::real::Real;
 use std::any::Any;
 
-use super::super::super::parallel::in_bands;
 use super::grid_operator::{Family, Field, GridOperator, zero_field};
+use crate::solver::parallel::in_bands;
 
 /// The coarsest level has at most this many particles and is solved directly.
 pub(crate) const COARSEST_PARTICLES: usize = 16;

@@ -6,14 +6,15 @@
 //! `A x = M x + Σ_s ±S (x_i - x_j)` streams through the spring list; the preconditioner is the
 //! inverse of each particle's diagonal block.
 
-use super::super::super::Interrupt;
-use super::super::super::dynamics::Dynamics;
-use super::super::super::springs::{direction, stiffness_block};
-use super::super::super::sym3::Sym3;
-use super::super::super::{Real, Vec3};
-use super::super::Interrupted;
 use super::grid_operator::Field;
 use super::{SolveOutcome, StepInput};
+use crate::solver::forces::dynamics::Dynamics;
+use crate::solver::forces::springs::{direction, stiffness_block};
+use crate::solver::integrators::Interrupted;
+use crate::solver::interrupt::Interrupt;
+use crate::solver::math::real::Real;
+use crate::solver::math::sym3::Sym3;
+use crate::solver::math::vec3::Vec3;
 
 #[derive(Debug)]
 pub(crate) struct SpringListSolver<T> {

@@ -4,8 +4,11 @@
 
 use glam::DVec3;
 
-use super::super::super::{Cloth, Model, SpringParams, State, Vec3};
 use super::*;
+use crate::solver::bodies::Cloth;
+use crate::solver::math::vec3::Vec3;
+use crate::solver::model::{Model, SpringParams};
+use crate::solver::state::State;
 
 /// The performance peers' hanging cloth at `n × n`: 1 m², 1 kg, every spring at k = 5000 N/m and
 /// damping 0.5 N·s/m, two corners pinned, with its drag `0.01 n²` 1/s.

@@ -5,11 +5,14 @@
 //! A force that a scene does not have is `None` and costs nothing. Wind keeps scratch (vertex
 //! normals), so an evaluation takes `&mut self`.
 
-use super::grid_springs::{self, AccelerationRows, BodyTerms, GridSprings};
-use super::model::{Model, Spring, SpringGrid};
+use super::body;
+use super::grid::{self, BodyTerms, GridSprings};
 use super::spring_runs::SpringRuns;
 use super::wind::{Wind, WindConfig};
-use super::{Real, State, Vec3, Vectors};
+use crate::solver::math::real::Real;
+use crate::solver::math::vec3::Vec3;
+use crate::solver::math::vectors::Vectors;
+use crate::solver::model::{Model, Spring, SpringGrid};
 
 /// Particle masses and the forces acting on them.
 #[derive(Clone, Debug)]
@@ -56,7 +59,7 @@ impl<T: Real> Dynamics<T> {
                 kind: s.kind,
             })
             .collect::<Vec<_>>();
-        let grids = grid_springs::grids(model, &springs);
+        let grids = grid::grids(model, &springs);
         let listed: Vec<Spring<T>> = springs
             .iter()
             .enumerate()
@@ -98,21 +101,7 @@ impl<T: Real> Dynamics<T> {
     /// Total force on each particle at state `(x, v)` and time `t` (seconds), written into
     /// `forces`.
     pub fn forces(&mut self, x: &Vectors<T>, v: &Vectors<T>, t: f64, forces: &mut Vectors<T>) {
-        let body = self.gravity.unwrap_or(Vec3::ZERO).to_array();
-        for ((f, v), g) in forces.axes_mut().into_iter().zip(v.axes()).zip(body) {
-            match self.drag {
-                Some(drag) => {
-                    for ((f, &m), &v) in f.iter_mut().zip(&self.masses).zip(v) {
-                        *f = (g - v * drag) * m;
-                    }
-                }
-                None => {
-                    for (f, &m) in f.iter_mut().zip(&self.masses) {
-                        *f = g * m;
-                    }
-                }
-            }
-        }
+        body::set_forces(forces, v, &self.masses, self.gravity, self.drag);
         for grid in &mut self.grids {
             grid.add_forces(x, v, forces);
         }
@@ -122,65 +111,38 @@ impl<T: Real> Dynamics<T> {
         }
     }
 
-    /// The one grid, and the particles' masses, gravity and drag as its passes take them.
-    fn grid_and_body_terms(&mut self) -> (&mut GridSprings<T>, BodyTerms<'_, T>) {
-        let terms = BodyTerms {
-            masses: &self.masses,
-            inverse_masses: &self.inverse_masses,
-            gravity: self.gravity.unwrap_or(Vec3::ZERO),
-            drag: self.drag.unwrap_or(T::ZERO),
-        };
-        (&mut self.grids[0], terms)
-    }
-
     /// Whether this scene's passes can fuse the forces with what an integrator does with them
-    /// ([`symplectic_step`](Self::symplectic_step),
-    /// [`accelerations_by_rows`](Self::accelerations_by_rows)): one grid body that is every
-    /// particle, and no other force than gravity, drag and its springs.
+    /// (see [`fused_grid`](Self::fused_grid)): one grid body that is every particle, and no other
+    /// force than gravity, drag and its springs.
     pub(crate) fn has_fused_passes(&self) -> bool {
         matches!(self.grids.as_slice(), [grid] if grid.particles() == (0..self.masses.len()))
             && self.wind.is_none()
             && self.listed_springs.is_empty()
     }
 
-    /// One symplectic Euler step from `state` into `next` in a single pass over the particles,
-    /// the forces never stored (see [`GridSprings::symplectic_step`]), for a scene that
-    /// [has one](Self::has_fused_passes). Returns the stability watch's sums over `next`
-    /// (`Σ m |v|²` and the sum of every position component), or `None`, having done nothing, for
-    /// any other scene.
-    pub(crate) fn symplectic_step(&mut self, state: &State<T>, next: &mut State<T>, h: T) -> Option<(T, T)> {
+    /// For a scene that [has fused passes](Self::has_fused_passes), its one grid and the
+    /// particles' masses, gravity and drag as the grid's passes take them, so that an integrator
+    /// can run its update inside the grid's force pass
+    /// ([`fused_symplectic`](crate::solver::integrators::fused_symplectic), RK4's stages);
+    /// `None` for any other scene.
+    pub(crate) fn fused_grid(&mut self) -> Option<(&mut GridSprings<T>, BodyTerms<'_, T>)> {
         if !self.has_fused_passes() {
             return None;
         }
-        let (grid, inputs) = self.grid_and_body_terms();
-        Some(grid.symplectic_step(&inputs, h, state, next))
-    }
-
-    /// For a scene that [has fused passes](Self::has_fused_passes): computes the accelerations at
-    /// `(x, v)` row by row and hands each row to `update` with its part of `outputs` (arrays over
-    /// every particle), in one pass (see [`GridSprings::accelerations_by_rows`]). Returns
-    /// `false`, having done nothing, for any other scene.
-    pub(crate) fn accelerations_by_rows<const O: usize>(
-        &mut self,
-        x: &Vectors<T>,
-        v: &Vectors<T>,
-        outputs: [&mut [T]; O],
-        update: &impl AccelerationRows<T, O>,
-    ) -> bool {
-        if !self.has_fused_passes() {
-            return false;
-        }
-        let (grid, inputs) = self.grid_and_body_terms();
-        grid.accelerations_by_rows(&inputs, x, v, outputs, update);
-        true
+        let terms = BodyTerms {
+            masses: &self.masses,
+            inverse_masses: &self.inverse_masses,
+            gravity: self.gravity.unwrap_or(Vec3::ZERO),
+            drag: self.drag.unwrap_or(T::ZERO),
+        };
+        Some((&mut self.grids[0], terms))
     }
 
     /// Acceleration of each particle at state `(x, v)` and time `t`, written into
     /// `accelerations`; zero for pinned particles.
     pub fn accelerations(&mut self, x: &Vectors<T>, v: &Vectors<T>, t: f64, accelerations: &mut Vectors<T>) {
-        if self.has_fused_passes() {
+        if let Some((grid, inputs)) = self.fused_grid() {
             // One grid and nothing else: forces and division in one pass over the rows.
-            let (grid, inputs) = self.grid_and_body_terms();
             grid.accelerations(&inputs, x, v, accelerations);
             return;
         }

@@ -17,7 +17,10 @@
 
 use glam::DVec3;
 
-use super::{Real, Vec3, Vectors, normals};
+use crate::solver::math::real::Real;
+use crate::solver::math::vec3::Vec3;
+use crate::solver::math::vectors::Vectors;
+use crate::solver::normals;
 
 /// How wind turns into forces.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -275,8 +278,11 @@ mod tests {
         }
     }
 
-    fn flag(wind: Option<WindConfig>, gravity: DVec3) -> crate::solver::Simulation<f64> {
-        use crate::solver::{Cloth, Config, IntegratorKind, Model, Orientation, Simulation, SpringParams};
+    fn flag(wind: Option<WindConfig>, gravity: DVec3) -> crate::solver::simulation::Simulation<f64> {
+        use crate::solver::bodies::{Cloth, Orientation};
+        use crate::solver::integrators::IntegratorKind;
+        use crate::solver::model::{Model, SpringParams};
+        use crate::solver::simulation::{Config, Simulation};
         let mut model = Model::default();
         let springs = SpringParams { stiffness: 500.0, damping: 0.5 };
         model.add_cloth(&Cloth {

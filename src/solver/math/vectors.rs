@@ -6,8 +6,9 @@
 //! contiguous run in each axis. The axes lie in one [`Arrays`] block, each starting on a cache
 //! line. Code that works one particle at a time uses [`Vectors::get`] and [`Vectors::set`].
 
-use super::arrays::Arrays;
-use super::{Real, Vec3};
+use super::real::Real;
+use super::vec3::Vec3;
+use crate::solver::arrays::Arrays;
 
 /// `len` 3-vectors, stored as three arrays of equal length (x, y, z).
 #[derive(Clone, Debug, Default)]

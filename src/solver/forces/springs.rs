@@ -4,9 +4,11 @@
 //! `f_i = [k (l - L) + c (v_j - v_i)·n] n` and `j` with `-f_i`. When `l` is zero the direction is
 //! undefined and the spring exerts no force, so coincident particles stay finite.
 
-use super::model::Spring;
-use super::sym3::Sym3;
-use super::{Real, Vec3, Vectors};
+use crate::solver::math::real::Real;
+use crate::solver::math::sym3::Sym3;
+use crate::solver::math::vec3::Vec3;
+use crate::solver::math::vectors::Vectors;
+use crate::solver::model::Spring;
 
 /// The unit direction from `i` to `j` and the distance, or `None` when they coincide.
 #[inline(always)]
@@ -22,8 +24,8 @@ pub(crate) fn direction<T: Real>(d: Vec3<T>) -> Option<(Vec3<T>, T)> {
 }
 
 /// Adds every spring's force to `forces`, one spring at a time in list order: the definition
-/// that the solver's fast passes ([`grid_springs`](super::grid_springs),
-/// [`spring_runs`](super::spring_runs)) are checked against.
+/// that the solver's fast passes ([`grid`](super::grid), [`spring_runs`](super::spring_runs)) are
+/// checked against.
 #[cfg(test)]
 pub fn add_forces<T: Real>(springs: &[Spring<T>], x: &Vectors<T>, v: &Vectors<T>, forces: &mut Vectors<T>) {
     for s in springs {

@@ -5,7 +5,8 @@
 use glam::DVec3;
 
 use super::Surface;
-use crate::solver::{Real, Vec3};
+use crate::solver::math::real::Real;
+use crate::solver::math::vec3::Vec3;
 
 /// The largest dip into the sphere, relative to its radius, that counts as grazing.
 pub(super) const GRAZE: f64 = 1e-3;

@@ -45,8 +45,12 @@
 use std::ops::Range;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
-use super::model::Model;
-use super::{Real, State, Vec3, Vectors, parallel};
+use crate::solver::math::real::Real;
+use crate::solver::math::vec3::Vec3;
+use crate::solver::math::vectors::Vectors;
+use crate::solver::model::Model;
+use crate::solver::parallel;
+use crate::solver::state::State;
 
 /// A cell's coordinates in cell sides, clamped to `i32` (a particle that far away has diverged;
 /// clamping only merges far cells, and the distance test still decides).
@@ -402,13 +406,19 @@ mod tests {
     use glam::DVec3;
 
     use super::*;
-    use crate::solver::{Chain, SpringParams};
+    use crate::solver::bodies::Chain;
+    use crate::solver::model::SpringParams;
 
     /// Particles on a line, `spacing` apart, with a spring between the first two only.
     fn model(positions: &[f64]) -> Model {
         let mut m = Model::default();
         m.add_particles(positions.iter().map(|&x| DVec3::new(x, 0.0, 0.0)), |_| 1.0, DVec3::ZERO);
-        m.connect(0, 1, SpringParams { stiffness: 1.0, damping: 0.0 }, crate::solver::SpringKind::Structural);
+        m.connect(
+            0,
+            1,
+            SpringParams { stiffness: 1.0, damping: 0.0 },
+            crate::solver::model::SpringKind::Structural,
+        );
         m
     }
 
@@ -484,7 +494,10 @@ mod tests {
     fn the_sweep_gives_the_same_bits_whatever_the_number_of_bands() {
         // A 40 × 40 cloth crumpled into a small box, so that thousands of pairs are met.
         let mut m = Model::default();
-        m.add_cloth(&crate::solver::Cloth::square_metre(40, SpringParams { stiffness: 1.0, damping: 0.0 }));
+        m.add_cloth(&crate::solver::bodies::Cloth::square_metre(
+            40,
+            SpringParams { stiffness: 1.0, damping: 0.0 },
+        ));
         for (p, x) in m.positions.iter_mut().enumerate() {
             let t = p as f64 * 0.37;
             *x = DVec3::new((t * 1.3).sin(), (t * 0.7).cos(), (t * 2.1).sin()) * 0.1;
@@ -515,7 +528,10 @@ mod tests {
     /// A 40 × 40 cloth crumpled into a small ball, with its velocities and inverse masses.
     fn crumpled_cloth() -> (Model, Vec<f64>, Vec<f64>) {
         let mut m = Model::default();
-        m.add_cloth(&crate::solver::Cloth::square_metre(40, SpringParams { stiffness: 1.0, damping: 0.0 }));
+        m.add_cloth(&crate::solver::bodies::Cloth::square_metre(
+            40,
+            SpringParams { stiffness: 1.0, damping: 0.0 },
+        ));
         for (p, x) in m.positions.iter_mut().enumerate() {
             let t = p as f64 * 0.37;
             *x = DVec3::new((t * 1.3).sin(), (t * 0.7).cos(), (t * 2.1).sin()) * 0.1;
@@ -627,7 +643,7 @@ mod tests {
 
     #[test]
     fn self_collision_is_a_stage_only_when_asked_for() {
-        use crate::solver::{Config, Simulation};
+        use crate::solver::simulation::{Config, Simulation};
         let m = model(&[0.0, 0.5, 1.0]);
         let without = Simulation::<f64>::new(&m, &Config::default());
         assert!(!without.stages().contains(&"self_collision"));

@@ -41,8 +41,12 @@ use glam::DVec3;
 
 use std::sync::atomic::{AtomicBool, Ordering};
 
-use super::spring_blocks::{self as blocks, LANES};
-use super::{Real, State, Vec3, Vectors, parallel};
+use crate::solver::forces::spring_blocks::{self as blocks, LANES};
+use crate::solver::math::real::Real;
+use crate::solver::math::vec3::Vec3;
+use crate::solver::math::vectors::Vectors;
+use crate::solver::parallel;
+use crate::solver::state::State;
 
 /// The friction coefficient a collider has when the scene gives none.
 pub const DEFAULT_FRICTION: f64 = 0.3;

@@ -1,20 +1,21 @@
 //! Blocks of [`LANES`] springs evaluated side by side: the vector kernel of the fast force passes.
 //!
-//! The grid pass ([`grid_springs`](super::grid_springs)) and the run pass
-//! ([`spring_runs`](super::spring_runs)) both evaluate springs whose first ends are consecutive
-//! particles and whose second ends are too. They read a block's ends straight from the state's
-//! axes into fixed-size arrays, compute the block's forces lane by lane with the branch-free
-//! formula of [`springs`](super::springs), and add them into force accumulators: code the
-//! compiler turns into full-width vector instructions, with no index lists and no remainder loop.
+//! The grid pass ([`grid`](super::grid)) and the run pass ([`spring_runs`](super::spring_runs))
+//! both evaluate springs whose first ends are consecutive particles and whose second ends are
+//! too. They read a block's ends straight from the state's axes into fixed-size arrays, compute
+//! the block's forces lane by lane with the branch-free formula of [`springs`](super::springs),
+//! and add them into force accumulators: code the compiler turns into full-width vector
+//! instructions, with no index lists and no remainder loop.
 //!
 //! A block's second ends take their forces before its first ends. When both ends lie on the
 //! same axis, `s > 0` particles apart, a particle `k` then always receives `-f[k - s]` before
 //! `+f[k]`, however the springs are cut into blocks: the order in which forces are summed does
 //! not depend on where a block starts.
 
-use super::{Real, springs};
+use super::springs;
+use crate::solver::math::real::Real;
 
-/// Springs evaluated side by side: eight `f32` fill an AVX2 register.
+/// Springs evaluated side by side: eight `f32` fill a 256-bit vector register.
 pub(crate) const LANES: usize = 8;
 
 /// The positions then velocities of a block's ends, per component.

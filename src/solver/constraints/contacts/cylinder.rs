@@ -4,7 +4,8 @@
 use glam::DVec3;
 
 use super::Surface;
-use crate::solver::{Real, Vec3};
+use crate::solver::math::real::Real;
+use crate::solver::math::vec3::Vec3;
 
 #[derive(Clone, Copy, Debug)]
 pub(super) struct Cylinder<T> {

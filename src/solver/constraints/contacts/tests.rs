@@ -4,7 +4,10 @@
 use glam::DVec3;
 
 use super::*;
-use crate::solver::{Config, IntegratorKind, Lattice, Model, Simulation, SpringParams};
+use crate::solver::bodies::Lattice;
+use crate::solver::integrators::IntegratorKind;
+use crate::solver::model::{Model, SpringParams};
+use crate::solver::simulation::{Config, Simulation};
 
 fn plane(friction: f64, restitution: f64) -> Collider {
     Collider { shape: Shape::Plane { point: DVec3::ZERO, normal: DVec3::Y }, friction, restitution }
@@ -197,11 +200,14 @@ fn particles_with_no_defined_push_direction_get_a_finite_one() {
 #[test]
 fn signed_distances_match_the_geometry() {
     let table = Shape::Cylinder { center: DVec3::new(0.0, 0.5, 0.0), radius: 0.5, height: 1.0 };
+    // Expected distances worked by hand from the shapes: above the top, beside the side, inside
+    // nearer the top than the side, and past the rim (a 3-4-5 triangle to the top edge).
     assert!((table.signed_distance(DVec3::new(0.0, 1.2, 0.0)) - 0.2).abs() < 1e-15);
     assert!((table.signed_distance(DVec3::new(0.8, 0.5, 0.0)) - 0.3).abs() < 1e-15);
     assert!((table.signed_distance(DVec3::new(0.1, 0.9, 0.0)) + 0.1).abs() < 1e-15);
     assert!((table.signed_distance(DVec3::new(0.8, 1.4, 0.0)) - 0.5).abs() < 1e-15);
     let cube = Shape::Box { center: DVec3::ZERO, half_extents: DVec3::splat(1.0) };
+    // Inside, half a unit from the nearest face; outside, 3-4-5 from the corner (1, 1).
     assert!((cube.signed_distance(DVec3::new(0.5, 0.0, 0.0)) + 0.5).abs() < 1e-15);
     assert!((cube.signed_distance(DVec3::new(4.0, 5.0, 0.0)) - 5.0).abs() < 1e-15);
 }

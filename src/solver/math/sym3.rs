@@ -2,7 +2,8 @@
 
 use std::ops::{Add, AddAssign, Mul};
 
-use super::{Real, Vec3};
+use super::real::Real;
+use super::vec3::Vec3;
 
 /// A symmetric 3×3 matrix stored as its six distinct entries.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]

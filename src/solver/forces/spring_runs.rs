@@ -18,8 +18,8 @@
 //! run (sorted by first particle), then the remaining springs in list order.
 //!
 //! Large scenes are cut into bands of particles run by the solver's threads
-//! ([`parallel`](super::parallel)). A band owns its particles' forces: it evaluates every spring
-//! with an end inside it, recomputing those that cross its border, and keeps only the
+//! ([`parallel`](crate::solver::parallel)). A band owns its particles' forces: it evaluates every
+//! spring with an end inside it, recomputing those that cross its border, and keeps only the
 //! contributions to its own particles. The order in which a particle sums its forces is the one
 //! above whatever the band count, so results do not depend on the number of threads. The result
 //! is the spring-list force of [`springs`](super::springs) summed in a different, fixed order:
@@ -27,10 +27,13 @@
 
 use std::ops::Range;
 
-use super::model::Spring;
 use super::spring_blocks::{self as blocks, LANES};
 use super::springs::direction;
-use super::{Real, Vec3, Vectors, parallel};
+use crate::solver::math::real::Real;
+use crate::solver::math::vec3::Vec3;
+use crate::solver::math::vectors::Vectors;
+use crate::solver::model::Spring;
+use crate::solver::parallel;
 
 /// The shortest run worth a vector block; shorter ones are evaluated one spring at a time.
 const MIN_RUN: usize = 4;
@@ -334,10 +337,10 @@ fn sort_into_runs<T: Real>(springs: &[Spring<T>]) -> (Vec<Run<T>>, Vec<T>, Vec<S
 mod tests {
     use glam::DVec3;
 
-    use super::super::bodies::{Chain, Cloth, Lattice, Mesh, Orientation};
-    use super::super::model::{Model, SpringParams};
-    use super::super::springs;
     use super::*;
+    use crate::solver::bodies::{Chain, Cloth, Lattice, Mesh, Orientation};
+    use crate::solver::forces::springs;
+    use crate::solver::model::{Model, SpringParams};
 
     const STIFF: SpringParams = SpringParams { stiffness: 900.0, damping: 0.3 };
     const SOFT: SpringParams = SpringParams { stiffness: 50.0, damping: 0.05 };

@@ -20,8 +20,11 @@
 #![allow(clippy::neg_cmp_op_on_partial_ord, reason = "written so that a NaN fails each test")]
 
 use super::contacts::Contacts;
-use super::model::Spring;
-use super::{Real, State, Vec3, Vectors};
+use crate::solver::math::real::Real;
+use crate::solver::math::vec3::Vec3;
+use crate::solver::math::vectors::Vectors;
+use crate::solver::model::Spring;
+use crate::solver::state::State;
 
 /// The relative excess over the limit a converged sweep tolerates.
 pub const TOLERANCE: f64 = 1e-9;
@@ -115,7 +118,7 @@ impl<T: Real> StrainLimit<T> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::solver::SpringKind;
+    use crate::solver::model::SpringKind;
 
     fn spring(i: u32, j: u32, rest_length: f64) -> Spring<f64> {
         Spring { i, j, rest_length, stiffness: 1.0, damping: 0.0, kind: SpringKind::Structural }
@@ -172,8 +175,11 @@ mod tests {
     }
 
     /// A soft cloth hanging from two corners, with and without the limit.
-    fn hanging(limit: Option<f64>) -> (crate::solver::Model, crate::solver::Config) {
-        use crate::solver::{Cloth, Config, IntegratorKind, Model, Orientation, SpringParams};
+    fn hanging(limit: Option<f64>) -> (crate::solver::model::Model, crate::solver::simulation::Config) {
+        use crate::solver::bodies::{Cloth, Orientation};
+        use crate::solver::integrators::IntegratorKind;
+        use crate::solver::model::{Model, SpringParams};
+        use crate::solver::simulation::Config;
         let mut model = Model::default();
         let soft = SpringParams { stiffness: 30.0, damping: 0.1 };
         model.add_cloth(&Cloth {
@@ -200,7 +206,7 @@ mod tests {
 
     #[test]
     fn in_a_simulation_no_spring_ends_a_step_beyond_its_limit_and_pins_hold() {
-        use crate::solver::Simulation;
+        use crate::solver::simulation::Simulation;
         let (model, config) = hanging(Some(0.1));
         let mut sim = Simulation::<f64>::new(&model, &config);
         assert_eq!(sim.stages(), ["gravity", "drag", "springs", "strain_limit"]);

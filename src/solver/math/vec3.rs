@@ -7,7 +7,7 @@ use std::ops::{Add, AddAssign, Mul, MulAssign, Neg, Sub, SubAssign};
 
 use glam::DVec3;
 
-use super::Real;
+use super::real::Real;
 
 /// A 3-vector of `T`, laid out as three consecutive scalars.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]

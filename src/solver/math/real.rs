@@ -2,7 +2,7 @@
 //!
 //! Every solver type is generic over [`Real`], implemented for `f32` and `f64`, so that one code
 //! path serves both precisions. Scenes are built in `f64` and converted once, when a
-//! [`Simulation`](super::Simulation) is created.
+//! [`Simulation`](crate::solver::simulation::Simulation) is created.
 
 use std::fmt::Debug;
 use std::iter::Sum;
