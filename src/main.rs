@@ -33,7 +33,8 @@ enum Command {
         #[arg(short, long)]
         output: Option<PathBuf>,
         /// Encode the result as json, glb, obj, npy, npz or pc2 (default: the scene's
-        /// `output.format`). npy becomes npz when the scene asks for more than positions.
+        /// `output.format`). npy becomes npz when the scene asks for more than positions; fields
+        /// the format cannot carry are not recorded, and named on standard error.
         #[arg(short, long)]
         format: Option<Format>,
         /// The limits the run must fit (as `drape serve` applies them; the memory budget is the
@@ -185,7 +186,7 @@ fn run(path: &Path, output: Option<&Path>, format: Option<Format>, limits: &Limi
         Ok(text) => text,
         Err(code) => return code,
     };
-    let scene = match Scene::from_json(&text) {
+    let mut scene = match Scene::from_json(&text) {
         Ok(scene) => scene,
         Err(e) => {
             eprintln!("drape: {} is not a valid scene:", path.display());
@@ -197,6 +198,17 @@ fn run(path: &Path, output: Option<&Path>, format: Option<Format>, limits: &Limi
         }
     };
     let format = format.unwrap_or(scene.output.format);
+    // A format chosen here over the scene's gets what it can carry; the rest is not recorded.
+    let carried = drape::output::carried(format, &scene.output.fields);
+    if !carried.omitted.is_empty() {
+        let names: Vec<&str> = carried.omitted.iter().map(|f| f.name()).collect();
+        eprintln!(
+            "drape: {} cannot carry {}; the result leaves them out (json and npz carry every field)",
+            format.name(),
+            names.join(", ")
+        );
+        scene.output.fields = carried.fields;
+    }
     if let Err(problems) = drape::output::check(format, &scene.output) {
         eprintln!("drape: {} cannot be encoded as {}:", path.display(), format.name());
         problems.iter().for_each(|fe| eprintln!("  {fe}"));

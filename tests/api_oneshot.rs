@@ -10,6 +10,8 @@ use axum::http::Request;
 use common::*;
 use drape::api::ApiConfig;
 use drape::jobs::JobsConfig;
+use drape::output::Format;
+use drape::scene::Field;
 use serde_json::Value;
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -447,16 +449,209 @@ async fn a_json_result_is_served_in_any_format_that_can_carry_it() {
     assert_eq!(&npy.body[..6], b"\x93NUMPY");
 
     // With velocities too, NPY becomes NPZ (a zip of one array per field), and OBJ, which holds
-    // positions and normals only, is refused naming the field.
+    // positions and normals only, leaves the velocities out and says so.
     let path = submit(r#"["positions", "velocities"]"#).await;
     let npz = get(&app, &format!("{path}?format=npy")).await;
     assert_eq!((npz.status, npz.header("content-type")), (200, Some("application/x-npz")));
     assert_eq!(&npz.body[..2], b"PK");
+    assert_eq!(npz.header("drape-omitted-fields"), None);
     let obj = get(&app, &format!("{path}?format=obj")).await;
-    assert_eq!(obj.status, 422, "{}", obj.text());
-    let problem = obj.problem();
+    assert_eq!((obj.status, obj.header("content-type")), (200, Some("model/obj")), "{}", obj.text());
+    assert_eq!(obj.header("drape-omitted-fields"), Some("velocities"));
+    // Without positions, a mesh format has nothing to show: still a 422, at the scene's field.
+    let path = submit(r#"["energy"]"#).await;
+    let glb = get(&app, &format!("{path}?format=glb")).await;
+    assert_eq!(glb.status, 422, "{}", glb.text());
+    assert_eq!(glb.problem()["type"], "/problems/format-cannot-carry");
+    assert_eq!(glb.problem()["errors"][0]["pointer"], "/output/fields");
+}
+
+/// Submits `scene` to `POST /jobs`, waits for it to succeed, and gives its result's path and
+/// the recording read back from its JSON result.
+async fn stored_result(app: &axum::Router, scene: &str) -> (String, drape::run::Recording) {
+    let id = post_json(app, "/jobs", scene).await.json()["id"].as_str().unwrap().to_string();
+    assert_eq!(poll_until(app, &id, is_final).await["status"], "succeeded");
+    let path = format!("/jobs/{id}/result");
+    let json = get(app, &path).await;
+    assert_eq!(json.header("content-type"), Some("application/json"));
+    (path, drape::output::read_json(&json.body).unwrap())
+}
+
+/// `fields` of `recording` encoded as `format`, as the library encodes them.
+fn encoded(recording: &drape::run::Recording, fields: &[drape::scene::Field], format: Format) -> Vec<u8> {
+    let mut bytes = Vec::new();
+    drape::output::encode_fields(recording, fields, format, &mut bytes).unwrap();
+    bytes
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn an_examples_result_is_served_in_any_format_naming_the_fields_it_leaves_out() {
+    let (_, app) = test_app(jobs_config(), ApiConfig::default());
+    // The README's example records energy, which no mesh format carries.
+    let scene =
+        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/examples/hanging_cloth.json")).unwrap();
+    let (path, recording) = stored_result(&app, &scene).await;
+    assert!(recording.frames.energy.is_some());
+    let positions = [Field::Positions];
+    let cases = [
+        ("glb", "model/gltf-binary", Some("energy"), Format::Glb, &positions[..]),
+        ("obj", "model/obj", Some("energy"), Format::Obj, &positions[..]),
+        ("pc2", "application/x-pc2", Some("energy"), Format::Pc2, &positions[..]),
+        // NPY with more than positions is sent as NPZ, which carries them all.
+        ("npy", "application/x-npz", None, Format::Npz, &[Field::Positions, Field::Energy][..]),
+    ];
+    for (name, media_type, omitted, format, fields) in cases {
+        let answer = get(&app, &format!("{path}?format={name}")).await;
+        assert_eq!(
+            (answer.status, answer.header("content-type")),
+            (200, Some(media_type)),
+            "{name}: {}",
+            answer.text()
+        );
+        assert_eq!(answer.header("drape-omitted-fields"), omitted, "{name}");
+        assert!(answer.body == encoded(&recording, fields, format), "{name}: not the encoding of {fields:?}");
+        // Content negotiation gets the same.
+        let accept = Request::get(&path).header("accept", format.media_type()).body(Body::empty()).unwrap();
+        let negotiated = send(&app, accept).await;
+        assert_eq!((negotiated.status, negotiated.header("drape-omitted-fields")), (200, omitted), "{name}");
+        assert_eq!(negotiated.body, answer.body, "{name}");
+    }
+
+    // Several fields left out are all named, in contract order.
+    let every = TINY.replace(
+        r#""frames": "final""#,
+        r#""frames": "all", "fields": ["strain", "positions", "energy", "velocities"]"#,
+    );
+    let (path, recording) = stored_result(&app, &every).await;
+    let pc2 = get(&app, &format!("{path}?format=pc2")).await;
+    assert_eq!(pc2.status, 200, "{}", pc2.text());
+    assert_eq!(pc2.header("drape-omitted-fields"), Some("velocities, energy, strain"));
+    assert!(pc2.body == encoded(&recording, &positions, Format::Pc2));
+    // Formats that carry everything leave nothing out.
+    for name in ["json", "npz"] {
+        let answer = get(&app, &format!("{path}?format={name}")).await;
+        assert_eq!((answer.status, answer.header("drape-omitted-fields")), (200, None), "{name}");
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn fields_select_what_a_result_holds_and_each_must_be_recorded_and_carried() {
+    let (_, app) = test_app(jobs_config(), ApiConfig::default());
+    let scene = TINY.replace(
+        r#""frames": "final""#,
+        r#""frames": "all", "fields": ["positions", "velocities", "energy"]"#,
+    );
+    let (path, recording) = stored_result(&app, &scene).await;
+
+    // In the stored format (JSON) and in another; the order named does not matter.
+    let json = get(&app, &format!("{path}?fields=energy,positions")).await;
+    assert_eq!(
+        (json.status, json.header("content-type")),
+        (200, Some("application/json")),
+        "{}",
+        json.text()
+    );
+    assert_eq!(json.header("drape-omitted-fields"), None);
+    assert!(json.body == encoded(&recording, &[Field::Positions, Field::Energy], Format::Json));
+    let frame = &json.json()["frames"][0];
+    assert!(frame.get("velocities").is_none() && frame.get("energy").is_some(), "{frame}");
+    let npy = get(&app, &format!("{path}?format=npy&fields=positions")).await;
+    assert_eq!((npy.status, npy.header("content-type")), (200, Some("application/x-npy")), "{}", npy.text());
+    assert!(npy.body == encoded(&recording, &[Field::Positions], Format::Npy));
+    let npz = get(&app, &format!("{path}?format=npz&fields=velocities")).await;
+    assert_eq!((npz.status, npz.header("content-type")), (200, Some("application/x-npz")), "{}", npz.text());
+    assert!(npz.body == encoded(&recording, &[Field::Velocities], Format::Npz));
+
+    // A field the run did not record.
+    let unrecorded = get(&app, &format!("{path}?fields=positions,normals")).await;
+    assert_eq!(unrecorded.status, 422, "{}", unrecorded.text());
+    let problem = unrecorded.problem();
+    assert_eq!(problem["type"], "/problems/field-not-recorded");
+    assert_eq!(problem["errors"][0]["pointer"], "/fields");
+    assert!(problem["detail"].as_str().unwrap().contains("normals"), "{problem}");
+    // A field asked for by name that the format cannot carry is refused, not left out.
+    let uncarried = get(&app, &format!("{path}?fields=positions,energy&format=glb")).await;
+    assert_eq!(uncarried.status, 422, "{}", uncarried.text());
+    let problem = uncarried.problem();
     assert_eq!(problem["type"], "/problems/format-cannot-carry");
-    assert_eq!(problem["errors"][0]["pointer"], "/output/fields/1");
+    assert_eq!(problem["errors"][0]["pointer"], "/fields");
+    assert!(problem["detail"].as_str().unwrap().contains("energy"), "{problem}");
+    // A mesh format still needs positions among them.
+    let no_positions = get(&app, &format!("{path}?fields=velocities&format=pc2")).await;
+    assert_eq!(no_positions.status, 422, "{}", no_positions.text());
+    assert_eq!(no_positions.problem()["errors"][0]["pointer"], "/fields");
+    // Names that are not fields are a malformed request.
+    for bad in ["positions,bogus", "", "positions,%20energy", "positions,"] {
+        let answer = get(&app, &format!("{path}?fields={bad}")).await;
+        assert_eq!(answer.status, 400, "{bad}: {}", answer.text());
+        assert_eq!(answer.problem()["errors"][0]["pointer"], "/fields", "{bad}");
+    }
+
+    // A result stored in a binary format is served only as stored.
+    let job = post_json(&app, "/jobs?format=pc2", &TINY.replace("final", "all")).await.json();
+    let id = job["id"].as_str().unwrap().to_string();
+    poll_until(&app, &id, is_final).await;
+    let selected = get(&app, &format!("/jobs/{id}/result?fields=positions")).await;
+    assert_eq!(selected.status, 406, "{}", selected.text());
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn simulate_sends_what_the_format_carries_and_names_the_rest() {
+    let (_, app) = test_app(jobs_config(), ApiConfig::default());
+    let scene = TINY
+        .replace(r#""frames": "final""#, r#""frames": "all", "fields": ["positions", "energy", "strain"]"#);
+    let direct = {
+        let scene = drape::scene::Scene::from_json(scene.as_bytes()).unwrap();
+        drape::run::execute(&scene.compile(), &drape::run::Control::new())
+    };
+    let pc2 = post_json(&app, "/simulate?format=pc2", &scene).await;
+    assert_eq!((pc2.status, pc2.header("content-type")), (200, Some("application/x-pc2")), "{}", pc2.text());
+    assert_eq!(pc2.header("drape-omitted-fields"), Some("energy, strain"));
+    assert!(pc2.body == encoded(&direct, &[Field::Positions], Format::Pc2));
+    let with_accept = |path: &str, accept: &str| {
+        Request::post(path)
+            .header("content-type", "application/json")
+            .header("accept", accept)
+            .body(Body::from(scene.clone()))
+            .unwrap()
+    };
+    let glb = send(&app, with_accept("/simulate", "model/gltf-binary")).await;
+    assert_eq!((glb.status, glb.header("content-type")), (200, Some("model/gltf-binary")), "{}", glb.text());
+    assert_eq!(glb.header("drape-omitted-fields"), Some("energy, strain"));
+    assert!(glb.body == encoded(&direct, &[Field::Positions], Format::Glb));
+    // The job it ran recorded what was sent: its stored result is that.
+    let id = glb.header("drape-job-id").unwrap().to_string();
+    let stored = get(&app, &format!("/jobs/{id}/result")).await;
+    assert_eq!(
+        (stored.header("content-type"), stored.header("drape-omitted-fields")),
+        (Some("model/gltf-binary"), None)
+    );
+    assert_eq!(stored.body, glb.body);
+
+    let selected = post_json(&app, "/simulate?fields=strain", &scene).await;
+    assert_eq!(selected.status, 200, "{}", selected.text());
+    let frame = &selected.json()["frames"][0];
+    assert!(frame.get("positions").is_none() && frame.get("strain").is_some(), "{frame}");
+    for (query, status, kind) in [
+        ("fields=normals", 422, "/problems/field-not-recorded"),
+        ("fields=energy&format=glb", 422, "/problems/format-cannot-carry"),
+        ("fields=strain&format=obj", 422, "/problems/format-cannot-carry"),
+        ("fields=wind", 400, "/problems/bad-request"),
+    ] {
+        let answer = post_json(&app, &format!("/simulate?{query}"), &scene).await;
+        assert_eq!(answer.status, status, "{query}: {}", answer.text());
+        let problem = answer.problem();
+        assert_eq!(
+            (problem["type"].as_str(), problem["errors"][0]["pointer"].as_str()),
+            (Some(kind), Some("/fields")),
+            "{query}"
+        );
+    }
+    // A scene whose own format cannot carry its fields contradicts itself: still invalid.
+    let contradictory = scene.replace(r#""frames": "all""#, r#""frames": "all", "format": "glb""#);
+    let answer = post_json(&app, "/simulate", &contradictory).await;
+    assert_eq!(answer.status, 422, "{}", answer.text());
+    assert_eq!(answer.problem()["errors"][0]["pointer"], "/output/fields/1");
 }
 
 /// The 629-byte scene of the issue: every pair of a 300² cloth's particles a self-collision

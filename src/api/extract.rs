@@ -12,7 +12,8 @@ use serde_json::Value;
 use super::problem::AppError;
 use crate::jobs::{JobId, fingerprint};
 use crate::output::Format;
-use crate::scene::{FieldError, Scene};
+use crate::output::carried;
+use crate::scene::{Field, FieldError, Scene};
 
 /// A scene from a JSON body, validated, with the fingerprint of the document.
 pub struct SceneBody {
@@ -41,6 +42,96 @@ impl SceneBody {
         self.fingerprint = fingerprint(&serde_json::json!([self.fingerprint, format.name()]));
         Ok(self)
     }
+}
+
+impl SceneBody {
+    /// The scene set to record what a one-shot result in `format` with `fields` sends (see
+    /// [`FieldsChoice`]), with the fields left out because the format cannot carry them. Without
+    /// either choice the scene is as sent. Each field selected must be one the scene records and
+    /// the format carries (`422` at `/fields`); what remains must be enough for the format
+    /// (positions for a mesh format, a frame), else a `422` at the scene's field. The choices
+    /// are part of the fingerprint.
+    pub fn for_result(
+        mut self,
+        format: Option<Format>,
+        fields: Option<Vec<Field>>,
+    ) -> Result<(Self, Vec<Field>), AppError> {
+        if format.is_none() && fields.is_none() {
+            return Ok((self, Vec::new()));
+        }
+        let wanted = format.unwrap_or(self.scene.output.format);
+        let recorded = &self.scene.output.fields;
+        let explicit = fields.is_some();
+        let (sent, kept, omitted) = match fields {
+            Some(fields) => {
+                if let Some(field) = fields.iter().find(|f| !recorded.contains(f)) {
+                    return Err(AppError::NotRecorded(vec![FieldError::new(
+                        "/fields",
+                        format!("the scene does not record {}; it records {}", field.name(), names(recorded)),
+                    )]));
+                }
+                let sent = wanted.for_fields(&fields);
+                if let Some(field) = fields.iter().find(|&&f| !sent.carries(f)) {
+                    return Err(AppError::CannotCarry {
+                        format: sent.name(),
+                        errors: vec![cannot_carry_selected(sent, *field)],
+                    });
+                }
+                (sent, fields, Vec::new())
+            }
+            None => {
+                let carried = carried(wanted, recorded);
+                (carried.format, carried.fields, carried.omitted)
+            }
+        };
+        self.scene.output.fields = kept;
+        if let Err(problems) = crate::output::check(sent, &self.scene.output) {
+            return Err(if explicit {
+                AppError::CannotCarry { format: sent.name(), errors: selection_problems(problems) }
+            } else {
+                AppError::InvalidScene(problems)
+            });
+        }
+        self.scene.output.format = sent;
+        // The stored document is what a worker runs, on any instance: it carries the choice too.
+        let names: Vec<&str> = self.scene.output.fields.iter().map(|f| f.name()).collect();
+        if let Some(scene) = self.document.as_object_mut() {
+            let output = scene.entry("output").or_insert_with(|| serde_json::json!({}));
+            if let Some(output) = output.as_object_mut() {
+                output.insert("format".into(), sent.name().into());
+                output.insert("fields".into(), names.clone().into());
+            }
+        }
+        self.fingerprint = fingerprint(&serde_json::json!([self.fingerprint, sent.name(), names]));
+        Ok((self, omitted))
+    }
+}
+
+/// Problems with an `output` of fields selected by name (`?fields=`), a field named by the
+/// selection (`/fields`) rather than the scene's `output.fields`.
+pub fn selection_problems(problems: Vec<FieldError>) -> Vec<FieldError> {
+    problems
+        .into_iter()
+        .map(
+            |p| {
+                if p.pointer.starts_with("/output/fields") { FieldError::new("/fields", p.detail) } else { p }
+            },
+        )
+        .collect()
+}
+
+/// Fields as a list for a message: `positions, energy`.
+pub fn names(fields: &[Field]) -> String {
+    fields.iter().map(|f| f.name()).collect::<Vec<_>>().join(", ")
+}
+
+/// The problem of a field selected by name (`?fields=`) that `format` cannot carry.
+pub fn cannot_carry_selected(format: Format, field: Field) -> FieldError {
+    let carriers: Vec<&str> = Format::ALL.iter().filter(|f| f.carries(field)).map(|f| f.name()).collect();
+    FieldError::new(
+        "/fields",
+        format!("format {} cannot carry {}; {} can", format.name(), field.name(), carriers.join(", ")),
+    )
 }
 
 impl<S: Send + Sync> FromRequest<S> for SceneBody {
@@ -237,6 +328,38 @@ impl<S: Send + Sync, const ACCEPT: bool> FromRequestParts<S> for FormatChoice<AC
                 .map_err(|e| AppError::NotAcceptable { detail: e.to_string() }),
             _ => Ok(Self(None)),
         }
+    }
+}
+
+/// The fields a client selects for a result: `?fields=positions,normals` (names, comma-separated;
+/// one named twice counts once). `None` leaves the choice to the format: every recorded field it
+/// carries.
+pub struct FieldsChoice(pub Option<Vec<Field>>);
+
+impl<S: Send + Sync> FromRequestParts<S> for FieldsChoice {
+    type Rejection = AppError;
+
+    async fn from_request_parts(parts: &mut Parts, state: &S) -> Result<Self, AppError> {
+        let params = query_parameters(parts, state).await?;
+        let Some(list) = params.get("fields") else { return Ok(Self(None)) };
+        let mut fields = Vec::new();
+        for name in list.split(',') {
+            match Field::ALL.into_iter().find(|f| f.name() == name) {
+                Some(field) if fields.contains(&field) => {}
+                Some(field) => fields.push(field),
+                None => {
+                    let detail = format!(
+                        "unknown field `{name}`: expected a comma-separated list of {}",
+                        names(&Field::ALL).replace(' ', "")
+                    );
+                    return Err(AppError::BadRequest {
+                        detail: detail.clone(),
+                        errors: vec![FieldError::new("/fields", detail)],
+                    });
+                }
+            }
+        }
+        Ok(Self(Some(fields)))
     }
 }
 

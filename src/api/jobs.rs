@@ -7,10 +7,14 @@ use axum::response::{IntoResponse, Response};
 use serde_json::json;
 
 use super::AppState;
-use super::extract::{FormatChoice, IdempotencyKey, JobPath, PageQuery, SceneBody};
+use super::extract::{
+    FieldsChoice, FormatChoice, IdempotencyKey, JobPath, PageQuery, SceneBody, names, selection_problems,
+};
 use super::problem::AppError;
 use super::views::job_view;
 use crate::jobs::{Cancelled, JobRecord, Page, StoredResult, Submission, TranscodeError, transcode};
+use crate::output::Format;
+use crate::scene::{Field, FieldError};
 
 /// `POST /jobs`: queues a scene; `202` with the job and its `Location`. A repeated
 /// `Idempotency-Key` with the same body answers with the same job. `?format=` sets the format
@@ -62,27 +66,42 @@ pub async fn get(State(state): State<AppState>, JobPath(id): JobPath) -> Result<
 }
 
 /// `GET /jobs/{id}/result`: the result of an ended job, in the format asked for (`?format=`,
-/// `Accept`), else the one it was stored in. A result stored as JSON (the default) is made into
-/// any other format on request; one stored in a binary format is served only as that, and asking
-/// for another is a `406` that says which it is. A format that cannot carry what the run
-/// recorded is a `422` naming the field.
+/// `Accept`), else the one it was stored in, with the fields asked for (`?fields=`), else every
+/// recorded field the format carries. A result stored as JSON (the default) is made into any
+/// other format on request, leaving out the fields the format cannot carry and naming them in
+/// `Drape-Omitted-Fields`; one stored in a binary format is served only as that, and asking for
+/// another (or for fields) is a `406` that says which it is. A field asked for by name that the
+/// run did not record, or that the format cannot carry, is a `422` at `/fields`.
 pub async fn result(
     State(state): State<AppState>,
     JobPath(id): JobPath,
     FormatChoice(format): FormatChoice<true>,
+    FieldsChoice(fields): FieldsChoice,
 ) -> Result<Response, AppError> {
     let job = state.jobs.get(&id).await?.ok_or_else(|| AppError::JobNotFound { id: id.to_string() })?;
     let result = match state.jobs.result(&id).await? {
         Some(result) if job.status.is_final() => result,
         _ => return Err(AppError::NoResult { id: job.id, status: job.status, message: job.message }),
     };
-    let Some(wanted) = format else { return Ok(result_response(&job, result)) };
+    if format.is_none() && fields.is_none() {
+        return Ok(result_response(&job, result, &[]));
+    }
     let stored = result.media_type;
-    let transcoded = tokio::task::spawn_blocking(move || transcode(result, wanted))
+    let wanted = format.or_else(|| Format::from_media_type(stored)).unwrap_or(Format::Json);
+    let explicit = fields.is_some();
+    let transcoded = tokio::task::spawn_blocking(move || transcode(result, format, fields.as_deref()))
         .await
         .map_err(|e| AppError::Internal(format!("transcoding job {id} failed: {e}")))?;
     match transcoded {
-        Ok(result) => Ok(result_response(&job, result)),
+        Ok(served) => Ok(result_response(&job, served.result, &served.omitted)),
+        Err(TranscodeError::NotCanonical { .. }) if format.is_none() || stored == wanted.media_type() => {
+            Err(AppError::NotAcceptable {
+                detail: format!(
+                    "job {id}'s result is stored as {stored}, from which no fields are selected; to select \
+                     them, keep the default json (or submit with ?format=json) and fetch with ?fields="
+                ),
+            })
+        }
         Err(TranscodeError::NotCanonical { .. }) => Err(AppError::NotAcceptable {
             detail: format!(
                 "job {id}'s result is stored as {stored}, from which no other format is made; to get {} ({}), \
@@ -93,6 +112,13 @@ pub async fn result(
                 wanted.name()
             ),
         }),
+        Err(TranscodeError::NotRecorded { field }) => Err(AppError::NotRecorded(vec![FieldError::new(
+            "/fields",
+            format!("job {id} did not record {}", field.name()),
+        )])),
+        Err(TranscodeError::CannotCarry { format, errors }) if explicit => {
+            Err(AppError::CannotCarry { format: format.name(), errors: selection_problems(errors) })
+        }
         Err(TranscodeError::CannotCarry { format, errors }) => {
             Err(AppError::CannotCarry { format: format.name(), errors })
         }
@@ -100,12 +126,17 @@ pub async fn result(
     }
 }
 
-/// A stored result as a response; the one place that turns a result into HTTP.
-pub fn result_response(job: &JobRecord, result: StoredResult) -> Response {
+/// A stored result as a response; the one place that turns a result into HTTP. `omitted` are
+/// the recorded fields its format could not carry, named in `Drape-Omitted-Fields`.
+pub fn result_response(job: &JobRecord, result: StoredResult, omitted: &[Field]) -> Response {
     let mut response = ([(header::CONTENT_TYPE, result.media_type)], result.bytes).into_response();
     let headers = response.headers_mut();
     headers.insert("drape-job-id", HeaderValue::from_str(job.id.as_str()).expect("job ids are header-safe"));
     headers.insert("drape-job-status", HeaderValue::from_static(job.status.name()));
+    if !omitted.is_empty() {
+        let names = HeaderValue::from_str(&names(omitted)).expect("field names are header-safe");
+        headers.insert("drape-omitted-fields", names);
+    }
     response
 }
 

@@ -103,6 +103,7 @@ fn cors(origins: &[String]) -> CorsLayer {
             header::WWW_AUTHENTICATE,
             HeaderName::from_static("drape-job-id"),
             HeaderName::from_static("drape-job-status"),
+            HeaderName::from_static("drape-omitted-fields"),
             HeaderName::from_static("idempotent-replayed"),
         ])
         .max_age(Duration::from_secs(3600))

@@ -135,6 +135,8 @@ pub enum AppError {
         /// What it cannot carry.
         errors: Vec<FieldError>,
     },
+    /// 422: a field selected by name (`?fields=`) is not one the run records.
+    NotRecorded(Vec<FieldError>),
     /// 422: the scene is valid but larger than this server's limits.
     OverLimit(Vec<FieldError>),
     /// 422: the sweep document is invalid, makes too many variants, or a run exceeds this
@@ -203,6 +205,7 @@ impl AppError {
             Self::UnsupportedMediaType { .. } => StatusCode::UNSUPPORTED_MEDIA_TYPE,
             Self::InvalidScene(_)
             | Self::CannotCarry { .. }
+            | Self::NotRecorded(_)
             | Self::InvalidSweep(_)
             | Self::OverLimit(_)
             | Self::KeyReused { .. }
@@ -320,6 +323,9 @@ impl AppError {
                 "The format cannot carry this result",
                 format!("{format} cannot carry what the run recorded: {}", summary(errors)),
             ),
+            Self::NotRecorded(errors) => {
+                ("field-not-recorded", "The run does not record this field", summary(errors))
+            }
             Self::InvalidSweep(errors) => ("invalid-sweep", "The sweep cannot run", summary(errors)),
             Self::OverLimit(errors) => (
                 "over-limit",
@@ -366,6 +372,7 @@ impl AppError {
         match self {
             Self::InvalidScene(errors)
             | Self::CannotCarry { errors, .. }
+            | Self::NotRecorded(errors)
             | Self::InvalidSweep(errors)
             | Self::OverLimit(errors)
             | Self::OverBudget { errors, .. }

@@ -1,6 +1,9 @@
 //! `POST /simulate`: runs a small scene through the job queue and answers with its result.
 //!
-//! The result is in the format `?format=` or `Accept` names, else the scene's `output.format`.
+//! The result is in the format `?format=` or `Accept` names, else the scene's `output.format`;
+//! a format chosen here records and sends the fields it carries and names the others in
+//! `Drape-Omitted-Fields`, and `?fields=` records and sends the fields it names
+//! ([`SceneBody::for_result`]).
 //! The job is an ordinary job (it shows in `GET /jobs`); the handler waits for it. Runs over the
 //! work budget (element-steps, see [`Cost`](crate::jobs::Cost)) are refused with `413`, the
 //! field of the costliest stage and a pointer to `POST /jobs`. A run that ends failed because
@@ -14,7 +17,7 @@ use axum::http::{HeaderValue, header};
 use axum::response::Response;
 
 use super::AppState;
-use super::extract::{FormatChoice, SceneBody};
+use super::extract::{FieldsChoice, FormatChoice, SceneBody};
 use super::jobs::result_response;
 use super::problem::AppError;
 use crate::jobs::{Failure, JobId, JobStatus, Jobs, Submission};
@@ -24,9 +27,10 @@ use crate::scene::FieldError;
 pub async fn simulate(
     State(state): State<AppState>,
     FormatChoice(format): FormatChoice<true>,
+    FieldsChoice(fields): FieldsChoice,
     body: SceneBody,
 ) -> Result<Response, AppError> {
-    let body = body.with_format(format)?;
+    let (body, omitted) = body.for_result(format, fields)?;
     let submission = Submission {
         scene: body.scene,
         document: body.document,
@@ -48,7 +52,7 @@ pub async fn simulate(
     match job.status {
         JobStatus::Succeeded | JobStatus::Diverged => {
             let result = ended.result.ok_or_else(|| AppError::Internal(format!("job {id} has no result")))?;
-            let mut response = result_response(&job, result);
+            let mut response = result_response(&job, result, &omitted);
             let location = HeaderValue::from_str(&format!("/jobs/{id}")).expect("job ids are URL-safe");
             response.headers_mut().insert(header::CONTENT_LOCATION, location);
             Ok(response)

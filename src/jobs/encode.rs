@@ -3,7 +3,9 @@
 //! Every result goes through [`encode_result`], the one place that chooses an encoding: the
 //! scene's `output.format` (NPY becomes NPZ when the scene records more than positions). A result
 //! kept as JSON, drape's canonical and lossless form, can be served later in any other format:
-//! [`transcode`] reads it back and encodes it again, with the same numbers.
+//! [`transcode`] reads it back and encodes it again, with the same numbers: the fields the
+//! caller selects, or by default every recorded field the format carries, naming those it left
+//! out.
 //!
 //! Encoding a large recording takes a while, so it can be stopped like the run: the bytes go
 //! through [`UnlessStopped`], which fails the next write once its caller's `stop` says so (the
@@ -14,10 +16,10 @@ use std::io::{self, Write};
 use bytes::Bytes;
 
 use super::store::StoredResult;
-use crate::output::{Format, check_recording, encode, read_json, recorded_fields};
+use crate::output::{Format, carried, check_fields, encode, encode_fields, read_json, recorded_fields};
 use crate::run::Recording;
-use crate::scene::FieldError;
 use crate::scene::Output;
+use crate::scene::{Field, FieldError};
 
 /// Encodes a recording in the format its scene's `output` asks for, unless `stop` turns true
 /// meanwhile: then the error is [`EncodingCancelled`].
@@ -83,12 +85,20 @@ pub enum TranscodeError {
         /// Its media type.
         stored: &'static str,
     },
-    /// The format cannot carry what the run recorded.
+    /// A field selected by name is not one the run recorded.
+    #[error("the run did not record {}", .field.name())]
+    NotRecorded {
+        /// The field.
+        field: Field,
+    },
+    /// The format cannot carry a field selected by name, or what is selected lacks what the
+    /// format needs (positions, a frame).
     #[error("{} cannot carry this result", .format.name())]
     CannotCarry {
         /// The format asked for.
         format: Format,
-        /// What it cannot carry, by the scene's `output` field.
+        /// What it cannot carry: by the scene's `output` field (`/output/fields/1`), a field
+        /// selected by name by its index in the selection, or `/output/frames`.
         errors: Vec<FieldError>,
     },
     /// The stored bytes did not read back or encode.
@@ -96,21 +106,56 @@ pub enum TranscodeError {
     Broken(String),
 }
 
-/// The stored result in `format`: as it is when it already is, else made from its JSON form.
-/// Reading and encoding is CPU work: call it off the async runtime.
-pub fn transcode(stored: StoredResult, format: Format) -> Result<StoredResult, TranscodeError> {
-    if stored.media_type == format.media_type() {
-        return Ok(stored);
+/// A stored result as served: its bytes, and the recorded fields the format asked for could not
+/// carry and so left out.
+#[derive(Debug)]
+pub struct Transcoded {
+    /// The result.
+    pub result: StoredResult,
+    /// The fields left out, in contract order; empty when nothing was.
+    pub omitted: Vec<Field>,
+}
+
+/// The stored result in `format` (else the one it is stored in) with `fields` (else every field
+/// the format carries): as it is when it already is, else made from its JSON form. Fields the
+/// format cannot carry are left out and named in [`Transcoded::omitted`] unless `fields` named
+/// them, which is [`TranscodeError::CannotCarry`]. Reading and encoding is CPU work: call it off
+/// the async runtime.
+pub fn transcode(
+    stored: StoredResult,
+    format: Option<Format>,
+    fields: Option<&[Field]>,
+) -> Result<Transcoded, TranscodeError> {
+    let format = format.or_else(|| Format::from_media_type(stored.media_type)).unwrap_or(Format::Json);
+    if stored.media_type == format.media_type() && fields.is_none() {
+        return Ok(Transcoded { result: stored, omitted: Vec::new() });
     }
     if stored.media_type != Format::Json.media_type() {
         return Err(TranscodeError::NotCanonical { stored: stored.media_type });
     }
     let recording = read_json(&stored.bytes).map_err(|e| TranscodeError::Broken(e.to_string()))?;
-    let format = format.for_fields(&recorded_fields(&recording));
-    check_recording(format, &recording).map_err(|errors| TranscodeError::CannotCarry { format, errors })?;
+    let recorded = recorded_fields(&recording);
+    let (format, fields, omitted) = match fields {
+        Some(fields) => {
+            if let Some(&field) = fields.iter().find(|f| !recorded.contains(f)) {
+                return Err(TranscodeError::NotRecorded { field });
+            }
+            (format.for_fields(fields), fields.to_vec(), Vec::new())
+        }
+        None => {
+            let carried = carried(format, &recorded);
+            (carried.format, carried.fields, carried.omitted)
+        }
+    };
+    check_fields(format, &recording, &fields)
+        .map_err(|errors| TranscodeError::CannotCarry { format, errors })?;
     let mut bytes = Vec::new();
-    encode(&recording, format, &mut bytes).map_err(|e| TranscodeError::Broken(e.to_string()))?;
-    Ok(StoredResult { media_type: format.media_type(), bytes: Bytes::from(bytes) })
+    encode_fields(&recording, &fields, format, &mut bytes)
+        .map_err(|e| TranscodeError::Broken(e.to_string()))?;
+    Ok(Transcoded {
+        result: StoredResult { media_type: format.media_type(), bytes: Bytes::from(bytes) },
+        omitted,
+    })
 }
 
 #[cfg(test)]

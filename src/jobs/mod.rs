@@ -32,7 +32,7 @@ mod sweeps;
 mod untrusted;
 
 pub use cost::{Cost, IMPLICIT_PASSES, StageCost};
-pub use encode::{EncodingCancelled, TranscodeError, encode_result, transcode};
+pub use encode::{EncodingCancelled, TranscodeError, Transcoded, encode_result, transcode};
 pub use fingerprint::fingerprint;
 pub use handoff::KeptModel;
 pub use id::JobId;

@@ -14,7 +14,7 @@
 use thiserror::Error;
 
 pub use crate::scene::Format;
-use crate::scene::{FieldError, Output};
+use crate::scene::{Field, FieldError, Output};
 
 /// Why a client's choice of format cannot be honoured.
 #[derive(Clone, Debug, Error, PartialEq, Eq)]
@@ -42,6 +42,11 @@ impl Format {
             Self::Npz => "application/x-npz",
             Self::Pc2 => "application/x-pc2",
         }
+    }
+
+    /// The format whose media type is exactly `media_type`.
+    pub fn from_media_type(media_type: &str) -> Option<Format> {
+        Format::ALL.into_iter().find(|f| f.media_type() == media_type)
     }
 
     /// The format named `name` (`?format=glb`, `--format glb`).
@@ -98,6 +103,29 @@ impl std::str::FromStr for Format {
     }
 }
 
+/// What a format sends of a run's fields when the caller names none: the format actually sent,
+/// the fields it carries and those it leaves out, each in contract order ([`Field::ALL`]).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Carried {
+    /// The format sent: NPY becomes NPZ for more than positions ([`Format::for_fields`]).
+    pub format: Format,
+    /// The fields it carries.
+    pub fields: Vec<Field>,
+    /// The fields it leaves out, empty when it carries them all.
+    pub omitted: Vec<Field>,
+}
+
+/// What `format` carries of `fields` (those a run recorded). Whether what is left is enough to
+/// encode (a mesh format needs positions) is [`check`]'s question.
+pub fn carried(format: Format, fields: &[Field]) -> Carried {
+    let format = format.for_fields(fields);
+    let (fields, omitted) = Field::ALL
+        .into_iter()
+        .filter(|field| fields.contains(field))
+        .partition(|&field| format.carries(field));
+    Carried { format, fields, omitted }
+}
+
 /// Checks that `format` can encode what `output` asks for. Each problem names its field by JSON
 /// Pointer into the scene (`/output/fields/2` for a field the format cannot carry), so that a
 /// request whose chosen format conflicts with its scene gets a 422 that says where.
@@ -109,7 +137,7 @@ pub fn check(format: Format, output: &Output) -> Result<(), Vec<FieldError>> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::scene::{Field, FrameSelection};
+    use crate::scene::FrameSelection;
 
     #[test]
     fn names_and_media_types_round_trip() {
@@ -154,6 +182,24 @@ mod tests {
         assert_eq!(check(Format::Npy, &asked), Ok(()));
         assert_eq!(Format::Npy.for_fields(&asked.fields), Format::Npz);
         assert_eq!(Format::Npy.for_fields(&[Field::Positions]), Format::Npy);
+    }
+
+    #[test]
+    fn a_format_carries_what_it_can_and_names_the_rest() {
+        let recorded = [Field::Positions, Field::Velocities, Field::Normals, Field::Energy];
+        let glb = carried(Format::Glb, &recorded);
+        assert_eq!(glb.format, Format::Glb);
+        assert_eq!(glb.fields, [Field::Positions, Field::Normals]);
+        assert_eq!(glb.omitted, [Field::Velocities, Field::Energy]);
+        let pc2 = carried(Format::Pc2, &[Field::Energy, Field::Positions, Field::Velocities, Field::Normals]);
+        assert_eq!(pc2.omitted, [Field::Velocities, Field::Normals, Field::Energy]);
+        assert_eq!((pc2.fields.as_slice(), pc2.omitted.len()), ([Field::Positions].as_slice(), 3));
+        // NPY with more than positions is sent as NPZ, which leaves nothing out.
+        let npy = carried(Format::Npy, &recorded);
+        assert_eq!((npy.format, npy.fields.len(), npy.omitted.len()), (Format::Npz, 4, 0));
+        assert_eq!(carried(Format::Json, &recorded).omitted, []);
+        // What is left may still not be enough: that is check's to say.
+        assert_eq!(carried(Format::Obj, &[Field::Energy]).fields, []);
     }
 
     #[test]

@@ -26,6 +26,7 @@ use std::io::{self, Write};
 
 use serde_json::{Value, json};
 
+use super::Selected;
 use super::surface::{body_range, body_triangles, body_vectors, vertex_normals};
 use crate::run::{Recording, Samples};
 use crate::scene::BodyInfo;
@@ -45,12 +46,12 @@ const UNDRAWN_NORMAL: [f32; 3] = [0.0, 1.0, 0.0];
 
 /// Writes `recording` as a GLB file. It needs positions and at least one frame that glTF can
 /// show (see [`shown_frames`]).
-pub(super) fn write_glb<W: Write>(recording: &Recording, w: &mut W) -> io::Result<()> {
-    let shown = shown_frames(recording);
+pub(super) fn write_glb<W: Write>(recording: &Recording, selected: &Selected, w: &mut W) -> io::Result<()> {
+    let shown = shown_frames(recording, selected);
     if shown.is_empty() {
         return Err(io::Error::new(io::ErrorKind::InvalidInput, "no frame has finite f32 positions"));
     }
-    let glb = Glb::plan(recording, shown);
+    let glb = Glb::plan(recording, selected, shown);
     let mut json_chunk = serde_json::to_vec(&glb.document).map_err(io::Error::other)?;
     json_chunk.resize(json_chunk.len().next_multiple_of(4), b' ');
     let bin_length = glb.layout_length;
@@ -90,9 +91,9 @@ impl<'a> Glb<'a> {
     /// Lays out the BIN chunk (body by body: base positions, normals, indices, then the targets;
     /// then the animation's times and weights) and describes it in the JSON document. Reads the
     /// frames once, for the targets' bounds.
-    fn plan(recording: &'a Recording, shown: Vec<usize>) -> Self {
-        let positions = recording.frames.positions.as_ref().expect("checked by encode");
-        let normals = recording.frames.normals.as_ref();
+    fn plan(recording: &'a Recording, selected: &Selected<'a>, shown: Vec<usize>) -> Self {
+        let positions = selected.positions.expect("checked by encode");
+        let normals = selected.normals;
         let frames = shown.len();
         let last = shown[frames - 1];
         let bodies: Vec<BodyPlan> = recording
@@ -290,8 +291,8 @@ impl BodyPlan<'_> {
 
 /// The recorded frames a GLB file can show, in order: those whose positions (and normals, if
 /// recorded) are finite in `f32`, and whose position deltas against the last of them are too.
-pub(super) fn shown_frames(recording: &Recording) -> Vec<usize> {
-    let Some(positions) = recording.frames.positions.as_ref() else { return Vec::new() };
+pub(super) fn shown_frames(recording: &Recording, selected: &Selected) -> Vec<usize> {
+    let Some(positions) = selected.positions else { return Vec::new() };
     let per_frame = 3 * recording.particles;
     let finite = |samples: &Samples, k: usize| {
         let range = k * per_frame..(k + 1) * per_frame;
@@ -300,7 +301,7 @@ pub(super) fn shown_frames(recording: &Recording) -> Vec<usize> {
             Samples::F64(v) => v[range].iter().all(|&x| (x as f32).is_finite()),
         }
     };
-    let normals = recording.frames.normals.as_ref();
+    let normals = selected.normals;
     let candidates: Vec<usize> = (0..recording.frames.len())
         .filter(|&k| finite(positions, k) && normals.is_none_or(|n| finite(n, k)))
         .collect();

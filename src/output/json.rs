@@ -11,15 +11,25 @@ use std::io::{self, Write};
 use serde::Serialize;
 use serde::ser::{SerializeMap, Serializer};
 
+use super::Selected;
 use crate::run::{EstimateOutcome, Recording, Samples, Stats};
 use crate::scene::FrameSelection;
 use crate::solver::Energy;
 
-/// Writes `recording` as the JSON result.
+/// Writes `recording` as the JSON result, with every field it recorded.
 pub fn write_json<W: Write>(recording: &Recording, writer: W) -> io::Result<()> {
+    write_json_fields(recording, &Selected::all(recording), writer)
+}
+
+/// Writes `recording` as the JSON result, with the fields `selected` only.
+pub(super) fn write_json_fields<W: Write>(
+    recording: &Recording,
+    selected: &Selected,
+    writer: W,
+) -> io::Result<()> {
     let mut serializer = serde_json::Serializer::new(writer);
     // `From` hands back a writer's own error as it was, so its caller can still tell what it is.
-    ResultView(recording).serialize(&mut serializer).map_err(io::Error::from)
+    ResultView { recording, selected }.serialize(&mut serializer).map_err(io::Error::from)
 }
 
 /// The `stats` object of the JSON result on its own, for job listings and progress views.
@@ -27,20 +37,23 @@ pub fn stats_json(stats: &Stats) -> serde_json::Value {
     serde_json::to_value(StatsView(stats)).expect("statistics are plain JSON values")
 }
 
-struct ResultView<'a>(&'a Recording);
+struct ResultView<'a> {
+    recording: &'a Recording,
+    selected: &'a Selected<'a>,
+}
 
 impl Serialize for ResultView<'_> {
     fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
-        let r = self.0;
+        let (r, selected) = (self.recording, self.selected);
         let mut map = s.serialize_map(None)?;
         map.serialize_entry("mesh", &MeshView(r))?;
         if r.selection == FrameSelection::All {
             let frames: Vec<FrameView> =
-                (0..r.frames.len()).map(|k| FrameView { recording: r, index: k }).collect();
+                (0..r.frames.len()).map(|k| FrameView { recording: r, selected, index: k }).collect();
             map.serialize_entry("frames", &frames)?;
         }
         if r.has_final {
-            map.serialize_entry("final", &FrameView { recording: r, index: r.frames.len() - 1 })?;
+            map.serialize_entry("final", &FrameView { recording: r, selected, index: r.frames.len() - 1 })?;
         }
         map.serialize_entry("stats", &StatsView(&r.stats))?;
         map.end()
@@ -70,26 +83,27 @@ impl Serialize for MeshView<'_> {
 
 struct FrameView<'a> {
     recording: &'a Recording,
+    selected: &'a Selected<'a>,
     index: usize,
 }
 
 impl Serialize for FrameView<'_> {
     fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
-        let (f, k) = (&self.recording.frames, self.index);
+        let (f, k) = (self.selected, self.index);
         let per_frame = 3 * self.recording.particles;
         let mut map = s.serialize_map(None)?;
-        map.serialize_entry("t", &f.times[k])?;
+        map.serialize_entry("t", &self.recording.frames.times[k])?;
         for (name, samples) in
-            [("positions", &f.positions), ("velocities", &f.velocities), ("normals", &f.normals)]
+            [("positions", f.positions), ("velocities", f.velocities), ("normals", f.normals)]
         {
             if let Some(samples) = samples {
                 map.serialize_entry(name, &SliceView { samples, start: k * per_frame, len: per_frame })?;
             }
         }
-        if let Some(energy) = &f.energy {
+        if let Some(energy) = f.energy {
             map.serialize_entry("energy", &EnergyView(&energy[k]))?;
         }
-        if let Some(strain) = &f.strain {
+        if let Some(strain) = f.strain {
             let n = self.recording.springs;
             map.serialize_entry("strain", &strain[k * n..(k + 1) * n])?;
         }

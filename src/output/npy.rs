@@ -15,40 +15,39 @@
 
 use std::io::{self, Write};
 
+use super::Selected;
 use crate::run::{Recording, Samples};
 use crate::solver::Energy;
 
 /// Writes the positions of `recording` as one NPY array.
-pub(super) fn write_npy<W: Write>(recording: &Recording, w: &mut W) -> io::Result<()> {
-    let positions = recording.frames.positions.as_ref().expect("checked by encode");
+pub(super) fn write_npy<W: Write>(recording: &Recording, selected: &Selected, w: &mut W) -> io::Result<()> {
+    let positions = selected.positions.expect("checked by encode");
     let array = Array::vectors("positions", positions, recording);
     w.write_all(&array.header())?;
     array.write_data(w)
 }
 
-/// Writes every field of `recording`, and the frame times, as an NPZ archive.
-pub(super) fn write_npz<W: Write>(recording: &Recording, w: &mut W) -> io::Result<()> {
-    let f = &recording.frames;
-    let frames = f.len();
+/// Writes every field selected of `recording`, and the frame times, as an NPZ archive.
+pub(super) fn write_npz<W: Write>(recording: &Recording, selected: &Selected, w: &mut W) -> io::Result<()> {
+    let (f, frames) = (selected, recording.frames.len());
     let mut arrays = Vec::new();
-    for (name, samples) in
-        [("positions", &f.positions), ("velocities", &f.velocities), ("normals", &f.normals)]
+    for (name, samples) in [("positions", f.positions), ("velocities", f.velocities), ("normals", f.normals)]
     {
         if let Some(samples) = samples {
             arrays.push(Array::vectors(name, samples, recording));
         }
     }
-    if let Some(energy) = &f.energy {
+    if let Some(energy) = f.energy {
         arrays.push(Array { name: "energy", shape: vec![frames, 3], data: Data::Energy(energy) });
     }
-    if let Some(strain) = &f.strain {
+    if let Some(strain) = f.strain {
         arrays.push(Array {
             name: "strain",
             shape: vec![frames, recording.springs],
             data: Data::F64(strain),
         });
     }
-    arrays.push(Array { name: "times", shape: vec![frames], data: Data::F64(&f.times) });
+    arrays.push(Array { name: "times", shape: vec![frames], data: Data::F64(&recording.frames.times) });
 
     let mut zip = ZipWriter { inner: w, written: 0, crc: crc32fast::Hasher::new(), entries: Vec::new() };
     for array in &arrays {

@@ -12,12 +12,13 @@
 
 use std::io::{self, Write};
 
+use super::Selected;
 use super::surface::{body_range, body_triangles, body_vectors, vertex_normals};
 use crate::run::{Recording, Samples};
 
 /// Writes the last recorded frame of `recording` as OBJ text. It needs positions and a frame.
-pub(super) fn write_obj<W: Write>(recording: &Recording, w: &mut W) -> io::Result<()> {
-    let positions = recording.frames.positions.as_ref().expect("checked by encode");
+pub(super) fn write_obj<W: Write>(recording: &Recording, selected: &Selected, w: &mut W) -> io::Result<()> {
+    let positions = selected.positions.expect("checked by encode");
     let last = recording.frames.len() - 1;
     writeln!(
         w,
@@ -39,7 +40,7 @@ pub(super) fn write_obj<W: Write>(recording: &Recording, w: &mut W) -> io::Resul
             writeln!(w, "l {}", indices.join(" "))?;
             continue;
         }
-        match &recording.frames.normals {
+        match selected.normals {
             Some(normals) => write_vectors(w, "vn", normals, range)?,
             None => {
                 let computed =

@@ -10,6 +10,7 @@
 
 use std::io::{self, Write};
 
+use super::Selected;
 use crate::run::{Recording, Samples};
 
 /// The signature that opens every PC2 file.
@@ -17,8 +18,8 @@ const SIGNATURE: &[u8; 12] = b"POINTCACHE2\0";
 const VERSION: i32 = 1;
 
 /// Writes the positions of `recording` as a PC2 point cache.
-pub(super) fn write_pc2<W: Write>(recording: &Recording, w: &mut W) -> io::Result<()> {
-    let positions = recording.frames.positions.as_ref().expect("checked by encode");
+pub(super) fn write_pc2<W: Write>(recording: &Recording, selected: &Selected, w: &mut W) -> io::Result<()> {
+    let positions = selected.positions.expect("checked by encode");
     let count = |n: usize, what: &str| {
         i32::try_from(n)
             .map_err(|_| io::Error::new(io::ErrorKind::InvalidInput, format!("too many {what} for PC2: {n}")))

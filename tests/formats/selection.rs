@@ -4,7 +4,7 @@
 use std::process::Command;
 
 use drape::output::Format;
-use drape::scene::Scene;
+use drape::scene::{Field, Scene};
 
 use crate::common::{Run, mixed_scene, scratch_dir};
 
@@ -57,6 +57,54 @@ fn encode_refuses_rather_than_drops_a_field() {
 }
 
 #[test]
+fn encode_fields_writes_what_a_run_recording_only_those_fields_would() {
+    let every =
+        Run::new(&mixed_scene("f64", "all", &["positions", "velocities", "normals", "energy", "strain"]));
+    let mesh = Run::new(&mixed_scene("f64", "all", &["positions", "normals"]));
+    let positions = Run::new(&mixed_scene("f64", "all", &["positions"]));
+    let cases = [
+        (Format::Glb, &mesh, &[Field::Normals, Field::Positions][..]),
+        (Format::Obj, &mesh, &[Field::Positions, Field::Normals][..]),
+        (Format::Npz, &mesh, &[Field::Positions, Field::Normals][..]),
+        (Format::Npy, &positions, &[Field::Positions][..]),
+        (Format::Pc2, &positions, &[Field::Positions][..]),
+        // Display normals computed from the positions, as for a run that recorded none.
+        (Format::Glb, &positions, &[Field::Positions][..]),
+    ];
+    for (format, expected, fields) in cases {
+        let mut bytes = Vec::new();
+        drape::output::encode_fields(&every.recording, fields, format, &mut bytes).unwrap();
+        assert!(bytes == expected.encode(format), "{format:?} {fields:?}");
+    }
+    // JSON: the frames as the smaller run's (the statistics differ: it ran fewer stages).
+    let mut bytes = Vec::new();
+    drape::output::encode_fields(
+        &every.recording,
+        &[Field::Positions, Field::Normals],
+        Format::Json,
+        &mut bytes,
+    )
+    .unwrap();
+    let json: serde_json::Value = serde_json::from_slice(&bytes).unwrap();
+    assert_eq!(json["frames"], mesh.json["frames"]);
+
+    // Every field named must be recorded and carried.
+    let mut bytes = Vec::new();
+    let error = drape::output::encode_fields(&mesh.recording, &[Field::Energy], Format::Json, &mut bytes)
+        .unwrap_err();
+    assert!(error.to_string().contains("did not record energy"), "{error}");
+    let error = drape::output::encode_fields(
+        &every.recording,
+        &[Field::Positions, Field::Strain],
+        Format::Obj,
+        &mut bytes,
+    )
+    .unwrap_err();
+    assert!(error.to_string().contains("cannot carry strain"), "{error}");
+    assert!(bytes.is_empty());
+}
+
+#[test]
 fn drape_run_writes_the_format_asked_for() {
     let dir = scratch_dir("cli");
     let scene = dir.join("scene.json");
@@ -77,11 +125,36 @@ fn drape_run_writes_the_format_asked_for() {
         assert!(std::fs::read(&out).unwrap().starts_with(magic), "{format}");
     }
 
-    std::fs::write(&scene, mixed_scene("f32", "all", &["positions", "strain"])).unwrap();
-    let refused = Command::new(drape).arg("run").arg(&scene).args(["--format", "pc2"]).output().unwrap();
+    // A format chosen over the scene's gets what it carries, and the rest is named on stderr.
+    std::fs::write(&scene, mixed_scene("f32", "all", &["positions", "strain", "energy"])).unwrap();
+    let out = dir.join("carried.pc2");
+    let carried = Command::new(drape)
+        .arg("run")
+        .arg(&scene)
+        .args(["--format", "pc2", "-o"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(carried.status.success(), "{}", String::from_utf8_lossy(&carried.stderr));
+    let stderr = String::from_utf8_lossy(&carried.stderr);
+    assert!(stderr.contains("pc2 cannot carry energy, strain;"), "{stderr}");
+    let positions_only = Run::new(&mixed_scene("f32", "all", &["positions"]));
+    assert_eq!(std::fs::read(&out).unwrap(), positions_only.encode(Format::Pc2));
+    let all = Command::new(drape)
+        .arg("run")
+        .arg(&scene)
+        .args(["--format", "npz", "-o"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(all.status.success() && all.stderr.is_empty(), "{}", String::from_utf8_lossy(&all.stderr));
+
+    // What is left must still be enough: a mesh format needs positions.
+    std::fs::write(&scene, mixed_scene("f32", "all", &["energy"])).unwrap();
+    let refused = Command::new(drape).arg("run").arg(&scene).args(["--format", "glb"]).output().unwrap();
     assert_eq!(refused.status.code(), Some(2));
     let stderr = String::from_utf8_lossy(&refused.stderr);
-    assert!(stderr.contains("/output/fields/1"), "{stderr}");
+    assert!(stderr.contains("/output/fields: ") && stderr.contains("needs positions"), "{stderr}");
 
     let unknown = Command::new(drape).arg("run").arg(&scene).args(["--format", "fbx"]).output().unwrap();
     assert!(!unknown.status.success());
