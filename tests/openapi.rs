@@ -218,3 +218,45 @@ fn no_description_is_cut_short_by_a_comma() {
     walk(&yaml(), "", &mut cut);
     assert!(cut.is_empty(), "keys with no value, each a description cut at a comma: {cut:?}");
 }
+
+/// An independent reader finds nothing wrong in the description: Redocly CLI, pinned in
+/// `.ci/node`, lints it with the `recommended` ruleset (`.ci/redocly.yaml`), and finds neither an
+/// error nor a warning.
+#[test]
+#[ignore = "needs node and .ci/node (npm ci --prefix .ci/node)"]
+fn redocly_finds_no_problem_in_the_description() {
+    let repo = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let cli = repo.join(".ci/node/node_modules/@redocly/cli/bin/cli.js");
+    assert!(cli.is_file(), "Redocly CLI is not installed: node, then `npm ci --prefix .ci/node`");
+    let output = std::process::Command::new("node")
+        .arg(&cli)
+        .args([
+            "lint",
+            "--config",
+            ".ci/redocly.yaml",
+            "--format",
+            "json",
+            "--max-problems",
+            "1000",
+            "openapi/openapi.yaml",
+        ])
+        .current_dir(repo)
+        // No usage report or update check over the network.
+        .env("REDOCLY_TELEMETRY", "off")
+        .env("REDOCLY_SUPPRESS_UPDATE_NOTICE", "true")
+        .output()
+        .unwrap_or_else(|e| panic!("cannot run node ({e}): install node, then `npm ci --prefix .ci/node`"));
+    let (stdout, stderr) = (String::from_utf8_lossy(&output.stdout), String::from_utf8_lossy(&output.stderr));
+    let report: Value = serde_json::from_str(&stdout)
+        .unwrap_or_else(|e| panic!("no JSON report from redocly ({e}):\n{stdout}\n{stderr}"));
+    let totals = &report["totals"];
+    assert!(
+        output.status.success() && totals["errors"] == 0 && totals["warnings"] == 0,
+        "redocly {} (exit {:?}) finds {} errors and {} warnings:\n{:#}\n{stderr}",
+        report["version"],
+        output.status.code(),
+        totals["errors"],
+        totals["warnings"],
+        report["problems"],
+    );
+}
