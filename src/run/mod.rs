@@ -8,6 +8,17 @@
 //! the control's [`Interrupt`](crate::solver::Interrupt) and gives up its step part-way, and the
 //! run ends cancelled with the frames recorded before. Only the fields the scene asks for are
 //! computed.
+//!
+//! With `stop_at_rest` a run ends at the first check (every [`BATCH`] steps, or sooner at a frame)
+//! after step 0 at which it is at rest, and rest means rest: every particle is slower than the
+//! scene's speed, and every free (unpinned) particle is balanced, its velocity changed by one
+//! whole step (forces, integrator, constraints, contacts) by less than [`Rest::acceleration`]
+//! times the step. That residual acceleration `|v(n+1) - v(n)| / dt` is about zero for a particle
+//! held still by springs, pins or a collider (contacts are projections, not forces, so the force
+//! sum on a particle lying on a surface is not zero, but the step's change of its velocity is),
+//! and about `|g|` for a particle just released, so a cloth that starts still is not at rest
+//! before it has begun to fall. The velocities of the step before each check are kept in a buffer
+//! made once before the first step, and only when the scene asks to stop at rest.
 
 mod control;
 mod error_estimate;
@@ -88,6 +99,7 @@ where
     let mut divergence = None;
     let mut failure = None;
     let mut rest_time = None;
+    let mut rest = compiled.stop_at_rest.map(|speed| Rest::new(compiled, speed, &simulation));
 
     loop {
         let taken = simulation.steps_taken();
@@ -102,9 +114,9 @@ where
             status = Status::Cancelled;
             break;
         }
-        if let Some(speed) = compiled.stop_at_rest
+        if let Some(rest) = &rest
             && taken > 0
-            && at_rest(&simulation.state().velocities, speed)
+            && rest.holds(&simulation.state().velocities, simulation.dt(), &compiled.model.pinned)
         {
             rest_time = Some(schedule.time_of(taken));
             if schedule.steps.get(next_frame.wrapping_sub(1)) != Some(&taken) {
@@ -113,7 +125,16 @@ where
             break;
         }
         let target = schedule.steps.get(next_frame).copied().unwrap_or(compiled.steps).min(taken + BATCH);
-        match (taken..target).try_for_each(|_| simulation.step()) {
+        let stepped = match &mut rest {
+            // The last step of the batch is taken apart, so that the check after it sees the
+            // velocities it started from.
+            Some(rest) => (taken..target - 1).try_for_each(|_| simulation.step()).and_then(|()| {
+                rest.previous.copy_from(&simulation.state().velocities);
+                simulation.step()
+            }),
+            None => (taken..target).try_for_each(|_| simulation.step()),
+        };
+        match stepped {
             Ok(()) => {}
             Err(StepError::Diverged(d)) => {
                 status = Status::Diverged;
@@ -174,9 +195,39 @@ where
     Outcome { recording: recorder.finish(compiled, stats, finished), final_positions }
 }
 
-fn at_rest<T: Real>(velocities: &Vectors<T>, speed: f64) -> bool {
-    let limit = T::from_f64(speed * speed);
-    velocities.iter().all(|v| v.length_squared() < limit)
+/// What a run that stops at rest checks, and the velocities it checks against.
+struct Rest<T> {
+    /// The scene's `stop_at_rest`: every particle must be slower than this, in m/s.
+    speed: f64,
+    /// The residual acceleration below which a free particle counts as balanced, in m/s²: 1 % of
+    /// `|gravity|`, or the speed limit per second (`stop_at_rest` / 1 s) if that is larger, as it
+    /// is when there is no gravity. 1 % of `|g|` means the particle's unbalanced force is under a
+    /// hundredth of its weight; a particle just released feels all of it. The speed per second
+    /// means that left alone the particle stays below the speed limit for at least a second more.
+    acceleration: f64,
+    /// The velocities at the start of the last step taken.
+    previous: Vectors<T>,
+}
+
+impl<T: Real> Rest<T> {
+    fn new(compiled: &Compiled, speed: f64, simulation: &Simulation<T>) -> Self {
+        let acceleration = (0.01 * compiled.config.gravity.length()).max(speed / 1.0);
+        Self { speed, acceleration, previous: simulation.state().velocities.clone() }
+    }
+
+    /// Whether `velocities`, one step of `dt` after [`Self::previous`], are at rest: every particle
+    /// slower than the speed, every free particle's velocity changed by less than the
+    /// acceleration times `dt`.
+    fn holds(&self, velocities: &Vectors<T>, dt: f64, pinned: &[bool]) -> bool {
+        let speed = T::from_f64(self.speed * self.speed);
+        let change = (self.acceleration * dt).powi(2);
+        velocities.iter().all(|v| v.length_squared() < speed)
+            && velocities
+                .iter()
+                .zip(self.previous.iter())
+                .zip(pinned)
+                .all(|((v, u), &pinned)| pinned || (v - u).to_dvec3().length_squared() < change)
+    }
 }
 
 /// Accumulates the fields of each recorded frame into flat buffers.

@@ -366,3 +366,88 @@ fn frames_finer_than_the_step_are_kept_once() {
     let r = run(json!({"duration": 0.01, "dt": 1e-3, "bodies": [small_cloth()], "output": {"fps": 1e6}}));
     assert_eq!(r.frames.times.len(), 11);
 }
+
+/// The last recorded frame's positions.
+fn last_positions(r: &Recording) -> Vec<f64> {
+    let all = r.frames.positions.as_ref().unwrap().to_f64();
+    all[all.len() - 3 * r.particles..].to_vec()
+}
+
+fn largest_difference(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| (x - y).abs()).fold(0.0, f64::max)
+}
+
+#[test]
+fn a_cloth_released_from_rest_does_not_stop_before_it_falls() {
+    // A cloth hanging from two corners, released still. At 100 frames a second rest is checked
+    // every 10 steps: at the first check (t = 0.01 s) every particle is slower than 0.2 m/s
+    // (9.81 m/s² × 0.01 s ≈ 0.098 m/s), but each still gains g per second: it has not begun.
+    let scene = |stop: Option<f64>| {
+        json!({"duration": 10.0, "dt": 1e-3, "integrator": "implicit_euler", "drag": 2.0,
+            "stop_at_rest": stop, "bodies": [small_cloth()], "error_estimate": "none",
+            "output": {"fps": 100, "fields": ["positions"]}})
+    };
+    let r = run(scene(Some(0.2)));
+    assert_eq!(r.stats.status, Status::Succeeded);
+    let t = r.stats.stopped_at_rest.expect("the damped cloth settles within 10 s");
+    assert!(t > 0.5, "stopped at {t} s, before the cloth had swung down");
+    assert_eq!(*r.frames.times.last().unwrap(), t);
+    assert_eq!(r.stats.steps, (t / 1e-3).round() as u64);
+    // Settled: where a run to the end puts it, within a few centimetres (its speed is under
+    // 0.2 m/s and decaying at the drag's rate), and with little kinetic energy.
+    let full = run(scene(None));
+    assert_eq!(full.stats.stopped_at_rest, None);
+    let off = largest_difference(&last_positions(&r), &last_positions(&full));
+    assert!(off < 0.05, "{off} m from where the cloth ends up");
+    let energy = r.stats.energy.unwrap();
+    // 0.5 kg, every particle under 0.2 m/s: at most ½ · 0.5 · 0.2² = 0.01 J.
+    assert!(energy.kinetic < 0.01, "{energy:?}");
+}
+
+#[test]
+fn a_cloth_falling_onto_the_floor_stops_once_it_lies_there() {
+    // Dropped from 0.3 m onto the floor plane (sticking friction): the fall takes
+    // √(2 · 0.3 / 9.81) ≈ 0.25 s; the cloth stops once it lies flat and still, well before 5 s.
+    let scene = |stop: Option<f64>| {
+        json!({"duration": 5.0, "dt": 2e-3, "integrator": "implicit_euler", "stop_at_rest": stop,
+            "bodies": [{"type": "cloth", "resolution": [6, 6], "center": [0, 0.3, 0]}],
+            "colliders": [{"type": "plane", "friction": 1.0}], "error_estimate": "none",
+            "output": {"fps": 50, "fields": ["positions"]}})
+    };
+    let r = run(scene(Some(1e-3)));
+    let t = r.stats.stopped_at_rest.expect("the cloth comes to rest on the floor");
+    assert!(t > 0.25 && t < 5.0, "stopped at {t} s");
+    let full = run(scene(None));
+    let off = largest_difference(&last_positions(&r), &last_positions(&full));
+    assert!(off < 1e-3, "{off} m from where the cloth ends up");
+    assert!(last_positions(&r).chunks(3).all(|p| p[1].abs() < 1e-9), "the cloth lies on the floor");
+}
+
+#[test]
+fn a_cloth_held_by_a_collider_is_at_rest() {
+    // Flat at rest length on the floor from the start: gravity pushes into the plane and the
+    // projection takes that away every step, so no velocity changes and the run stops at its
+    // first check (64 steps), though the force sum on each particle is its weight.
+    let r = run(json!({"duration": 1.0, "dt": 1e-3, "stop_at_rest": 1e-3,
+        "bodies": [{"type": "cloth", "resolution": [6, 6], "center": [0, 0, 0]}],
+        "colliders": [{"type": "plane", "friction": 1.0}], "error_estimate": "none",
+        "output": {"frames": "final"}}));
+    assert_eq!((r.stats.stopped_at_rest, r.stats.steps), (Some(0.064), 64));
+    // Draped over a ball onto the floor (the scene of examples/drape_sphere.json, run longer):
+    // the stretched springs pull and the ball pushes back. It stops once settled, where a run
+    // to the end leaves it.
+    let scene = |stop: Option<f64>| {
+        let mut scene: Value =
+            serde_json::from_str(include_str!("../../examples/drape_sphere.json")).unwrap();
+        scene["duration"] = json!(6.0);
+        scene["stop_at_rest"] = json!(stop);
+        scene["error_estimate"] = json!("none");
+        scene
+    };
+    let r = run(scene(Some(0.01)));
+    let t = r.stats.stopped_at_rest.expect("the draped cloth comes to rest");
+    assert!(t > 0.5 && t < 6.0, "stopped at {t} s");
+    let full = run(scene(None));
+    let off = largest_difference(&last_positions(&r), &last_positions(&full));
+    assert!(off < 0.02, "{off} m from where the cloth ends up");
+}
