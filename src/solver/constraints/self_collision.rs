@@ -492,18 +492,8 @@ mod tests {
 
     #[test]
     fn the_sweep_gives_the_same_bits_whatever_the_number_of_bands() {
-        // A 40 × 40 cloth crumpled into a small box, so that thousands of pairs are met.
-        let mut m = Model::default();
-        m.add_cloth(&crate::solver::bodies::Cloth::square_metre(
-            40,
-            SpringParams { stiffness: 1.0, damping: 0.0 },
-        ));
-        for (p, x) in m.positions.iter_mut().enumerate() {
-            let t = p as f64 * 0.37;
-            *x = DVec3::new((t * 1.3).sin(), (t * 0.7).cos(), (t * 2.1).sin()) * 0.1;
-        }
-        let velocities: Vec<f64> = (0..m.particle_count()).map(|p| (p as f64 * 0.11).sin()).collect();
-        let w: Vec<f64> = (0..m.particle_count()).map(|p| if p % 97 == 0 { 0.0 } else { 1.0 }).collect();
+        // Crumpled so that thousands of pairs are met.
+        let (m, velocities, w) = crumpled_cloth();
         let sweeps = |bands: usize| {
             let mut stage = SelfCollision::<f64>::new(&m, 0.004, usize::MAX);
             stage.pairs = vec![Vec::new(); bands];
