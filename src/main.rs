@@ -13,7 +13,7 @@ use drape::output::{Format, encode};
 use drape::progress;
 use drape::run::{Control, Status, execute};
 use drape::scene::Scene;
-use drape::sweep::{Sweep, run_locally_with, write_csv, write_svg};
+use drape::sweep::{Sweep, Thresholds, run_locally_with, write_csv, write_svg};
 
 /// Cloth and mass-spring simulation.
 #[derive(Parser)]
@@ -66,6 +66,14 @@ enum Command {
         /// Draw no progress bar (one is drawn on standard error only when it is a terminal).
         #[arg(short, long)]
         quiet: bool,
+        /// Exit 1 if a run's error (against the reference, else its own estimate) is above this,
+        /// in metres, or a run did not succeed.
+        #[arg(long)]
+        max_error: Option<f64>,
+        /// Exit 1 if an integrator's observed convergence order is below this (needs `/dt` varied
+        /// and a reference).
+        #[arg(long)]
+        min_order: Option<f64>,
         /// The limits every run must fit (as `drape serve` applies them; the memory budget is
         /// shared by the runs at once).
         #[command(flatten)]
@@ -79,7 +87,7 @@ fn main() -> ExitCode {
         Command::Run { scene, output, format, quiet, limits } => {
             run(&scene, output.as_deref(), format, progress::wanted(quiet), &limits)
         }
-        Command::Sweep { sweep, csv, plot, threads, max_variants, quiet, limits } => {
+        Command::Sweep { sweep, csv, plot, threads, max_variants, quiet, max_error, min_order, limits } => {
             let threads =
                 threads.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
             let options = SweepOptions {
@@ -88,6 +96,7 @@ fn main() -> ExitCode {
                 threads,
                 max_variants,
                 progress: progress::wanted(quiet),
+                thresholds: Thresholds { max_error, min_order },
             };
             run_sweep(&sweep, options, &limits)
         }
@@ -141,10 +150,11 @@ struct SweepOptions<'a> {
     threads: usize,
     max_variants: u64,
     progress: bool,
+    thresholds: Thresholds,
 }
 
 fn run_sweep(path: &Path, options: SweepOptions<'_>, limits: &LimitArgs) -> ExitCode {
-    let SweepOptions { csv, plot, threads, max_variants, progress } = options;
+    let SweepOptions { csv, plot, threads, max_variants, progress, thresholds } = options;
     let text = match read_input(path) {
         Ok(text) => text,
         Err(code) => return code,
@@ -160,6 +170,10 @@ fn run_sweep(path: &Path, options: SweepOptions<'_>, limits: &LimitArgs) -> Exit
             return ExitCode::from(2);
         }
     };
+    if let Err(reason) = thresholds.check(&sweep) {
+        eprintln!("drape: {reason}");
+        return ExitCode::from(2);
+    }
     let runs_at_once = threads.max(1).min(sweep.variants.len() + usize::from(sweep.reference.is_some()));
     let limits = limits.limits(runs_at_once);
     let document: serde_json::Value = serde_json::from_slice(&text).unwrap_or_default();
@@ -194,13 +208,17 @@ fn run_sweep(path: &Path, options: SweepOptions<'_>, limits: &LimitArgs) -> Exit
         }
         None => Ok(()),
     };
-    match printed.and_then(|_| out.flush()).and(plotted) {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("drape: cannot write the table: {e}");
-            ExitCode::FAILURE
-        }
+    if let Err(e) = printed.and_then(|_| out.flush()).and(plotted) {
+        eprintln!("drape: cannot write the table: {e}");
+        return ExitCode::FAILURE;
     }
+    let crossings = thresholds.crossings(&table);
+    if crossings.is_empty() {
+        return ExitCode::SUCCESS;
+    }
+    eprintln!("drape: {} crosses the thresholds:", path.display());
+    crossings.iter().for_each(|line| eprintln!("  {line}"));
+    ExitCode::FAILURE
 }
 
 fn run(

@@ -230,3 +230,48 @@ fn a_run_and_a_sweep_show_progress_on_a_terminal_and_nowhere_else() {
     assert!(piped.status.success());
     assert_eq!(String::from_utf8_lossy(&piped.stderr), "");
 }
+
+#[test]
+fn drape_sweep_fails_a_ci_step_whose_orders_or_errors_cross_the_thresholds() {
+    let sweep = "examples/sweeps/single_spring_orders.json";
+    let gated = |flags: &[&str]| {
+        let out = Command::new(env!("CARGO_BIN_EXE_drape"))
+            .args(["sweep", sweep, "--csv", "--quiet"])
+            .args(flags)
+            .env_remove("DRAPE_MEMORY_BUDGET")
+            .output()
+            .unwrap();
+        (out.status.code(), String::from_utf8(out.stderr).unwrap())
+    };
+    // The sweep's orders are about 1, 1, 2, 4 and 1 (src/sweep/tests.rs checks them).
+    assert_eq!(gated(&["--min-order", "0.8"]), (Some(0), String::new()));
+    let (code, stderr) = gated(&["--min-order", "1.5"]);
+    assert_eq!(code, Some(1), "{stderr}");
+    assert_eq!(stderr.lines().filter(|l| l.contains("is below --min-order 1.5")).count(), 3, "{stderr}");
+    assert!(!stderr.contains("verlet") && !stderr.contains("rk4"), "{stderr}");
+    // RK4's largest error is about 1e-8 m, explicit Euler's about 2e-2 m.
+    let (code, stderr) = gated(&["--max-error", "1e-3"]);
+    assert_eq!(code, Some(1), "{stderr}");
+    assert!(stderr.contains("/integrator = explicit_euler, /dt = 0.004: error "), "{stderr}");
+    assert!(!stderr.contains("rk4"), "{stderr}");
+    assert_eq!(gated(&["--max-error", "1"]).0, Some(0));
+    // A threshold that cannot apply is a usage error, before anything runs.
+    let out = Command::new(env!("CARGO_BIN_EXE_drape"))
+        .args(["sweep", "-", "--min-order", "1"])
+        .stdin(Stdio::piped())
+        .stderr(Stdio::piped())
+        .stdout(Stdio::piped())
+        .spawn()
+        .and_then(|mut child| {
+            child.stdin.take().unwrap().write_all(
+                br#"{"scene": {"duration": 0.1, "bodies": [{"type": "chain", "count": 3}]}, "vary": {"/dt": [0.01, 0.02]}}"#,
+            )?;
+            child.wait_with_output()
+        })
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    assert!(
+        String::from_utf8_lossy(&out.stderr)
+            .contains("--min-order needs a sweep that varies /dt and has a reference")
+    );
+}
