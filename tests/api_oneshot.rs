@@ -64,18 +64,19 @@ async fn a_diverged_run_is_a_successful_answer_about_the_scene() {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn simulate_refuses_runs_over_its_budget_and_points_to_jobs() {
-    let api = ApiConfig { simulate_work_budget: 74, ..ApiConfig::default() };
+    let api = ApiConfig { simulate_work_budget: 149, ..ApiConfig::default() };
     let (_, app) = test_app(jobs_config(), api);
-    // TINY is 3 particles and 2 springs × (10 steps + 5 of its error estimate's companion) = 75
-    // element-steps, 50 of them the bodies' own.
+    // TINY is 3 particles and 2 springs × (10 steps + 20 of its error estimate's companion, at
+    // half the step because twice the step would pass the stability bound) = 150 element-steps,
+    // 50 of them the bodies' own.
     let answer = post_json(&app, "/simulate", TINY).await;
     assert_eq!(answer.status, 413);
     let problem = answer.problem();
     assert_eq!(problem["type"], "/problems/over-simulate-budget");
     let detail = problem["detail"].as_str().unwrap();
-    assert!(detail.contains("75 element-steps") && detail.contains("POST /jobs"), "{detail}");
-    assert_eq!(problem["errors"][0]["pointer"], "/bodies/0/count");
-    assert_eq!(problem["errors"][0]["detail"], "bodies costs 50 of the run's 75 element-steps");
+    assert!(detail.contains("150 element-steps") && detail.contains("POST /jobs"), "{detail}");
+    assert_eq!(problem["errors"][0]["pointer"], "/error_estimate");
+    assert_eq!(problem["errors"][0]["detail"], "error_estimate costs 100 of the run's 150 element-steps");
     // The same scene is welcome as a job.
     assert_eq!(post_json(&app, "/jobs", TINY).await.status, 202);
 }
@@ -269,7 +270,7 @@ async fn health_metrics_and_openapi_answer() {
         "drape_jobs{status=\"running\"} 0",
         "drape_queue_length 0",
         "drape_running_jobs 0",
-        "drape_particle_steps_total 45",
+        "drape_particle_steps_total 90",
         "drape_http_request_duration_seconds_bucket{le=\"+Inf\"}",
         "drape_http_requests_total{code=\"2xx\"}",
     ] {
@@ -694,14 +695,14 @@ async fn every_cost_is_refused_before_work_starts_at_the_field_that_makes_it() {
         .map(|i| format!(r#"{{"type":"sphere","center":[{},-5,0],"radius":0.01}}"#, i as f64 * 1e-3))
         .collect();
     let scene = format!(
-        r#"{{"duration":0.15,"dt":0.001,"bodies":[{{"type":"cloth","resolution":[32,32]}}],"colliders":[{}]}}"#,
+        r#"{{"duration":0.15,"dt":0.001,"error_estimate":"none","bodies":[{{"type":"cloth","resolution":[32,32]}}],"colliders":[{}]}}"#,
         spheres.join(",")
     );
     let answer = post_json(&app, "/simulate", &scene).await;
     assert_eq!(answer.status, 413, "{}", answer.text());
     let problem = answer.problem();
     assert_eq!(problem["errors"][0]["pointer"], "/colliders");
-    // 1024 particles × 10,000 colliders × (150 steps + 75 of the companion).
+    // 1024 particles × 10,000 colliders × 150 steps.
     assert!(problem["detail"].as_str().unwrap().contains("POST /jobs"), "{problem}");
     assert_eq!(
         problem["errors"][0]["detail"].as_str().unwrap().split(' ').nth(2),

@@ -13,9 +13,7 @@
 //! memory of `drape run` on cloths, lattices and collider sets of several sizes, with each
 //! integrator and stage, stays under the estimate plus [`MEMORY_RESERVE`](crate::config::MEMORY_RESERVE).
 
-use crate::scene::{
-    Body, Compiled, ErrorEstimateName, Field, FrameSelection, IntegratorName, Precision, Scene,
-};
+use crate::scene::{Body, Compiled, Field, FrameSelection, IntegratorName, Precision, Scene};
 use crate::solver::{WindModel, candidate_pairs};
 
 use super::record::Plan;
@@ -264,12 +262,9 @@ pub fn recorded(compiled: &Compiled, plan: &Plan) -> (u64, u64) {
     (frames, frames.saturating_mul(per_frame))
 }
 
-/// Steps of the error estimate's companions: at twice the step, and for `richardson3` also at
-/// four times the step.
+/// Steps of the error estimate's companions, as planned before they run
+/// ([`crate::run::planned_companion_steps`]): at twice the step (and four times, for `richardson3`), or
+/// at half (and a quarter) when the doubled step would not be stable.
 pub fn companion_steps(compiled: &Compiled) -> u64 {
-    match compiled.error_estimate {
-        ErrorEstimateName::None => 0,
-        ErrorEstimateName::Richardson => compiled.steps / 2,
-        ErrorEstimateName::Richardson3 => compiled.steps / 2 + compiled.steps / 4,
-    }
+    crate::run::planned_companion_steps(compiled)
 }

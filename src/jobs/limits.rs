@@ -202,19 +202,26 @@ mod tests {
 
     #[test]
     fn a_small_scene_is_admitted_with_its_plan() {
+        // This chain's stability bound is 0.0141 s: 0.005 s keeps it at twice the step.
         let plan = Limits::default()
-            .admit(&scene(r#"{"duration": 1, "dt": 0.01, "bodies": [{"type": "chain", "count": 5}]}"#))
+            .admit(&scene(r#"{"duration": 1, "dt": 0.005, "bodies": [{"type": "chain", "count": 5}]}"#))
             .unwrap()
             .plan;
-        assert_eq!((plan.particles, plan.springs, plan.steps), (5, 4, 100));
-        // The default Richardson estimate adds a companion run of 50 steps.
-        assert_eq!((plan.companion_steps, plan.work()), (50, 750));
+        assert_eq!((plan.particles, plan.springs, plan.steps), (5, 4, 200));
+        // The default Richardson estimate adds a companion run of 100 steps.
+        assert_eq!((plan.companion_steps, plan.work()), (100, 1500));
         let json =
-            r#"{"duration": 1, "dt": 0.01, "bodies": [{"type": "chain", "count": 5}], "error_estimate": "#;
+            r#"{"duration": 1, "dt": 0.005, "bodies": [{"type": "chain", "count": 5}], "error_estimate": "#;
         let work = |method: &str| {
             Limits::default().admit(&scene(&format!("{json}\"{method}\"}}"))).unwrap().plan.work()
         };
-        assert_eq!((work("none"), work("richardson3")), (500, 875));
+        // richardson3's companion at four times the step would pass the bound: it takes half and a
+        // quarter of the step instead, 400 + 800 steps.
+        assert_eq!((work("none"), work("richardson3")), (1000, 7000));
+        // At 0.01 s, twice the step passes the bound: the companion runs at half the step.
+        let near_the_bound = r#"{"duration": 1, "dt": 0.01, "bodies": [{"type": "chain", "count": 5}]}"#;
+        let plan = Limits::default().admit(&scene(near_the_bound)).unwrap().plan;
+        assert_eq!((plan.companion_steps, plan.work()), (200, 1500));
     }
 
     #[test]

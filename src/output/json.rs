@@ -242,7 +242,10 @@ impl Serialize for StatsView<'_> {
                 crate::scene::ErrorEstimateName::Richardson3 => "richardson3",
                 _ => "richardson",
             };
-            let mut error = serde_json::json!({"method": method, "order": e.order, "extra_wall_time_s": e.extra_wall_time_s});
+            let mut error = serde_json::json!({
+                "method": method, "order": e.order, "companion_step": e.companion_step.name(),
+                "extra_wall_time_s": e.extra_wall_time_s,
+            });
             match &e.outcome {
                 EstimateOutcome::Estimate { max, rms, observed_order, reliable } => {
                     error["max"] = (*max).into();

@@ -16,8 +16,8 @@ use serde_json::Value;
 use thiserror::Error;
 
 use crate::run::{
-    ColliderShape, Diverged, ErrorEstimate, EstimateOutcome, Frames, RecordedCollider, Recording,
-    RigidTransform, Samples, Stats, Status,
+    ColliderShape, CompanionStep, Diverged, ErrorEstimate, EstimateOutcome, Frames, RecordedCollider,
+    Recording, RigidTransform, Samples, Stats, Status,
 };
 use crate::scene::{BodyInfo, DtSource, ErrorEstimateName, FrameSelection, Precision};
 use crate::solver::{Energy, IntegratorKind, LinearSolveStats, STAGE_NAMES};
@@ -361,5 +361,10 @@ fn read_error(e: &Value) -> Result<ErrorEstimate, ReadError> {
         order: count("stats.error.order", &e["order"])? as u32,
         outcome,
         extra_wall_time_s: number("stats.error.extra_wall_time_s", &e["extra_wall_time_s"])?,
+        companion_step: named(
+            "stats.error.companion_step",
+            &e["companion_step"],
+            &[("doubled", CompanionStep::Doubled), ("halved", CompanionStep::Halved)],
+        )?,
     })
 }

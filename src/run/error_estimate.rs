@@ -13,8 +13,17 @@
 //! wall time, and when the cores are all busy they wait their turn rather than oversubscribe
 //! them. Their own wall time is reported as `extra_wall_time_s`.
 //! With `stop_at_rest` the end time is known only when the main run stops, so the companions run
-//! after it, to that time. A companion that diverges or cannot take a single step says so
-//! instead of an estimate.
+//! after it, to that time.
+//!
+//! A run near its stability limit, the usual choice for an explicit method, cannot have a
+//! companion at twice its step. Its companions are then taken at half the step (and a quarter,
+//! for `richardson3`): the same extrapolation holds with `r = 1/2`, the error of the run at `h`
+//! being about `|x_h - x_{h/2}| / (1 - 2^-p)`. Halved companions are chosen from the start when an
+//! explicit integrator's doubled step (or quadrupled, for `richardson3`) passes the stability
+//! bound, and after the fact when a doubled companion diverges anyway; `companion_step` says
+//! which was used, and `extra_wall_time_s` counts every companion run, the diverged ones
+//! included. A companion that cannot take a single step, or a halved one that diverges too,
+//! says so instead of an estimate.
 
 use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::time::Instant;
@@ -23,6 +32,7 @@ use glam::DVec3;
 
 use super::{Control, Outcome, Recording, Status, simulate};
 use crate::scene::{Compiled, ErrorEstimateName};
+use crate::solver::{IntegratorKind, stable_step};
 
 /// The error estimate of a run.
 #[derive(Clone, Debug, PartialEq)]
@@ -35,6 +45,42 @@ pub struct ErrorEstimate {
     pub outcome: EstimateOutcome,
     /// Wall time of the companion runs, in seconds.
     pub extra_wall_time_s: f64,
+    /// Whether the companions took larger or smaller steps than the run.
+    pub companion_step: CompanionStep,
+}
+
+/// The companions' step against the run's own `h`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum CompanionStep {
+    /// `2h` (and `4h` for `richardson3`): cheap, and the default.
+    Doubled,
+    /// `h/2` (and `h/4`): when the doubled step would not be stable.
+    Halved,
+}
+
+impl CompanionStep {
+    /// The name results use.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Doubled => "doubled",
+            Self::Halved => "halved",
+        }
+    }
+
+    /// The companions' step counts for a run of `steps` steps (`None` past `u64`).
+    fn steps(self, method: ErrorEstimateName, steps: u64) -> Vec<Option<u64>> {
+        let factors: &[u64] = match method {
+            ErrorEstimateName::Richardson3 => &[2, 4],
+            _ => &[2],
+        };
+        factors
+            .iter()
+            .map(|&f| match self {
+                Self::Doubled => Some((steps / f).max(1)),
+                Self::Halved => steps.checked_mul(f),
+            })
+            .collect()
+    }
 }
 
 /// What the companions gave.
@@ -51,7 +97,7 @@ pub enum EstimateOutcome {
         /// With `richardson3`: whether the observed order is within 30 % of the assumed one.
         reliable: Option<bool>,
     },
-    /// No estimate: a companion diverged, was cancelled, or had too few steps.
+    /// No estimate: a halved companion diverged too, or the companions were cancelled.
     Unavailable {
         /// Why, in words.
         reason: String,
@@ -64,60 +110,134 @@ pub(super) fn execute_with_estimate(
     control: &Control,
     method: ErrorEstimateName,
 ) -> Recording {
-    let factors: &[u64] = match method {
-        ErrorEstimateName::Richardson3 => &[2, 4],
-        _ => &[2],
+    let choose = |steps: u64| companion_step(compiled, method, steps);
+    let companions_to = |spacing: CompanionStep, steps: u64, end: f64| -> Vec<Companion> {
+        spacing
+            .steps(method, steps)
+            .into_iter()
+            .map(|n| run_companion(compiled, control, n, steps, end))
+            .collect()
     };
-    let (main, companions): (Outcome, Vec<Companion>) = if compiled.stop_at_rest.is_some() {
+    let (first_choice, main, mut companions) = if compiled.stop_at_rest.is_some() {
         let main = simulate(compiled, control, true);
-        let (steps, duration) = (main.recording.stats.steps, main.recording.frames.times.last().copied());
-        let end = duration.unwrap_or(steps as f64 * compiled.config.dt);
-        let companions = factors.iter().map(|&f| run_companion(compiled, control, f, steps, end)).collect();
-        (main, companions)
+        let (steps, end) = main_extent(compiled, &main);
+        let spacing = choose(steps);
+        (spacing, main, companions_to(spacing, steps, end))
     } else {
-        rayon::join(
+        let spacing = choose(compiled.steps);
+        let (main, companions) = rayon::join(
             || simulate(compiled, control, true),
             || {
-                let companion = |f| run_companion(compiled, control, f, compiled.steps, compiled.duration);
                 // A companion that fails costs the estimate, never the run.
-                let guarded = |f| {
-                    catch_unwind(AssertUnwindSafe(|| companion(f))).unwrap_or_else(|_| Companion::failed())
-                };
-                factors.iter().map(|&f| guarded(f)).collect()
+                catch_unwind(AssertUnwindSafe(|| companions_to(spacing, compiled.steps, compiled.duration)))
+                    .unwrap_or_else(|_| vec![Companion::failed()])
             },
-        )
+        );
+        (spacing, main, companions)
     };
+    let mut spacing = first_choice;
+    if spacing == CompanionStep::Doubled && companions.iter().any(|c| c.diverged) && !control.is_cancelled() {
+        let (steps, end) = main_extent(compiled, &main);
+        let spent: f64 = companions.iter().map(|c| c.wall_time_s).sum();
+        let halved = catch_unwind(AssertUnwindSafe(|| companions_to(CompanionStep::Halved, steps, end)))
+            .unwrap_or_else(|_| vec![Companion::failed()]);
+        companions = halved;
+        if let Some(first) = companions.first_mut() {
+            first.wall_time_s += spent;
+        }
+        spacing = CompanionStep::Halved;
+    }
     let Outcome { mut recording, final_positions } = main;
     if let Some(fine) = final_positions {
         let h = recording.stats.dt;
-        recording.stats.error = Some(estimate(compiled, method, &fine, h, &companions));
+        recording.stats.error = Some(estimate(compiled, method, &fine, h, &companions, spacing));
     }
     recording
+}
+
+/// The companions' step for a run of `steps` steps, chosen before they run: halved when the
+/// doubled step would pass the stability bound that an explicit integrator's own step keeps, or
+/// would leave no step at all.
+pub fn companion_step(compiled: &Compiled, method: ErrorEstimateName, steps: u64) -> CompanionStep {
+    if doubled_step_is_unstable(compiled, method) || steps < largest_factor(method) {
+        CompanionStep::Halved
+    } else {
+        CompanionStep::Doubled
+    }
+}
+
+/// The steps of the companions an estimate plans for a run of `compiled.steps` steps (0 without
+/// an estimate). A doubled companion that diverges all the same is followed by halved ones, at
+/// twice (six times, for `richardson3`) the run's steps more, which only the job's wall time
+/// bounds: it happens only where the stability bound did not foresee the divergence.
+pub fn planned_companion_steps(compiled: &Compiled) -> u64 {
+    let method = compiled.error_estimate;
+    if method == ErrorEstimateName::None {
+        return 0;
+    }
+    companion_step(compiled, method, compiled.steps)
+        .steps(method, compiled.steps)
+        .into_iter()
+        .map(|n| n.unwrap_or(u64::MAX))
+        .fold(0, u64::saturating_add)
+}
+
+/// The steps the main run took and the time it reached: the companions' span.
+fn main_extent(compiled: &Compiled, main: &Outcome) -> (u64, f64) {
+    let steps = main.recording.stats.steps;
+    let end = main.recording.frames.times.last().copied();
+    (steps, end.unwrap_or(steps as f64 * compiled.config.dt))
+}
+
+/// The largest factor between the run's step and a companion's.
+fn largest_factor(method: ErrorEstimateName) -> u64 {
+    match method {
+        ErrorEstimateName::Richardson3 => 4,
+        _ => 2,
+    }
+}
+
+/// Whether an explicit integrator's step is within its stability bound and its largest
+/// companion step is not. (A run already past the bound is left to its watch: it diverges, or
+/// its doubled companion shows how far it is from its own asymptotic regime.)
+fn doubled_step_is_unstable(compiled: &Compiled, method: ErrorEstimateName) -> bool {
+    let integrator = compiled.config.integrator;
+    if integrator == IntegratorKind::ImplicitEuler {
+        return false;
+    }
+    let dt = compiled.config.dt;
+    let largest = largest_factor(method) as f64 * dt;
+    stable_step(&compiled.model, compiled.config.drag)
+        .map(|bound| bound * integrator.stability_factor())
+        .is_some_and(|bound| dt <= bound && largest > bound)
 }
 
 /// A companion's end state, or why it has none, and its wall time.
 struct Companion {
     result: Result<(Vec<DVec3>, f64), String>,
+    diverged: bool,
     wall_time_s: f64,
 }
 
 impl Companion {
     fn failed() -> Self {
-        Self { result: Err("the companion run failed".into()), wall_time_s: 0.0 }
+        Self { result: Err("the companion run failed".into()), diverged: false, wall_time_s: 0.0 }
     }
 }
 
+/// A companion of `companion_steps` steps over the main run's first `steps` steps (`duration`).
 fn run_companion(
     compiled: &Compiled,
     control: &Control,
-    factor: u64,
+    companion_steps: Option<u64>,
     steps: u64,
     duration: f64,
 ) -> Companion {
     let started = Instant::now();
-    let Some(coarse) = compiled.companion(factor, steps, duration) else {
+    let Some(coarse) = companion_steps.map(|n| compiled.companion(n, duration)) else {
         return Companion {
-            result: Err(format!("the run has too few steps ({steps}) for a companion at {factor}× the step")),
+            result: Err(format!("the run has too many steps ({steps}) for a companion at half its step")),
+            diverged: false,
             wall_time_s: 0.0,
         };
     };
@@ -138,7 +258,8 @@ fn run_companion(
         )),
         _ => Err("the companion run was cancelled".into()),
     };
-    Companion { result, wall_time_s: started.elapsed().as_secs_f64() }
+    let diverged = recording.stats.status == Status::Diverged;
+    Companion { result, diverged, wall_time_s: started.elapsed().as_secs_f64() }
 }
 
 fn estimate(
@@ -147,6 +268,7 @@ fn estimate(
     fine: &[DVec3],
     h: f64,
     companions: &[Companion],
+    companion_step: CompanionStep,
 ) -> ErrorEstimate {
     let order = compiled.config.integrator.order();
     let extra_wall_time_s = companions.iter().map(|c| c.wall_time_s).sum();
@@ -154,7 +276,8 @@ fn estimate(
         Err(reason) => EstimateOutcome::Unavailable { reason: reason.clone() },
         Ok(coarse) => {
             let (first, first_dt) = (&coarse[0].0, coarse[0].1);
-            let scale = 1.0 / ((first_dt / h).powi(order as i32) - 1.0);
+            // |r^p - 1| with r = H / h: 2^p - 1 for a doubled step, 1 - 2^-p for a halved one.
+            let scale = 1.0 / ((first_dt / h).powi(order as i32) - 1.0).abs();
             let differences: Vec<f64> = fine.iter().zip(first).map(|(a, b)| a.distance(*b)).collect();
             let max = differences.iter().copied().fold(0.0, f64::max) * scale;
             let rms_difference = root_mean_square(&differences);
@@ -172,7 +295,7 @@ fn estimate(
             EstimateOutcome::Estimate { max, rms: rms_difference * scale, observed_order, reliable }
         }
     };
-    ErrorEstimate { method, order, outcome, extra_wall_time_s }
+    ErrorEstimate { method, order, outcome, extra_wall_time_s, companion_step }
 }
 
 fn root_mean_square(values: &[f64]) -> f64 {

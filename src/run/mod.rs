@@ -30,7 +30,9 @@ use std::time::Instant;
 
 pub use colliders::{ColliderShape, RecordedCollider, RigidTransform};
 pub use control::Control;
-pub use error_estimate::{ErrorEstimate, EstimateOutcome};
+pub use error_estimate::{
+    CompanionStep, ErrorEstimate, EstimateOutcome, companion_step, planned_companion_steps,
+};
 pub use recording::{Diverged, Frames, Recording, Samples, Stats, Status};
 
 use glam::DVec3;

@@ -219,28 +219,51 @@ fn three_runs_measure_the_order() {
     }
 }
 
-#[test]
-fn a_companion_that_diverges_says_so() {
-    // Just inside the stability bound at dt; twice that step is outside it.
-    let scene =
-        Scene::from_json(swinging_chain("symplectic_euler", 1e-3, "richardson").to_string().as_bytes())
-            .unwrap();
-    let bound = scene.compile().model.clone();
-    let dt = 0.9 * crate::solver::stable_step(&bound, 0.0).unwrap();
-    let r = run(swinging_chain("symplectic_euler", dt, "richardson"));
-    assert_eq!(r.stats.status, Status::Succeeded);
-    let EstimateOutcome::Unavailable { reason } = &r.stats.error.as_ref().unwrap().outcome else {
-        panic!("expected the companion to diverge at dt = {}", 2.0 * dt)
-    };
-    assert!(reason.contains("diverged"), "{reason}");
+/// The largest distance between the final positions of two runs, in metres.
+fn final_distance(a: &Recording, b: &Recording) -> f64 {
+    largest_difference(&final_positions(a), &final_positions(b))
 }
 
 #[test]
-fn one_step_is_too_few_for_a_companion_and_none_asks_for_nothing() {
+fn a_run_near_its_stability_limit_is_estimated_at_half_its_step() {
+    // Just inside the stability bound at dt, so twice that step is outside it: the companions
+    // are taken at dt/2 (and dt/4), and the estimate still tracks the true error.
+    let scene =
+        Scene::from_json(swinging_chain("symplectic_euler", 1e-3, "richardson").to_string().as_bytes())
+            .unwrap();
+    let bound = crate::solver::stable_step(&scene.compile().model, 0.0).unwrap();
+    let reference = run(swinging_chain("rk4", bound / 256.0, "none"));
+    for (integrator, factor) in
+        [("symplectic_euler", 0.9), ("verlet", 0.9), ("rk4", 0.9 * std::f64::consts::SQRT_2)]
+    {
+        let dt = factor * bound;
+        for method in ["richardson", "richardson3"] {
+            let r = run(swinging_chain(integrator, dt, method));
+            assert_eq!(r.stats.status, Status::Succeeded);
+            let error = r.stats.error.as_ref().unwrap();
+            assert_eq!(error.companion_step, CompanionStep::Halved, "{integrator} {method}");
+            let (max, _) = estimate_of(&r);
+            let true_max = final_distance(&r, &reference);
+            let ratio = max / true_max;
+            assert!(
+                (0.5..=2.0).contains(&ratio),
+                "{integrator} {method} at dt {dt:.3e}: estimate {max:.3e}, true {true_max:.3e}"
+            );
+            assert!(error.extra_wall_time_s > 0.0);
+        }
+    }
+    // Well inside the bound, the companions take the cheaper doubled step.
+    let r = run(swinging_chain("symplectic_euler", 0.25 * bound, "richardson"));
+    assert_eq!(r.stats.error.unwrap().companion_step, CompanionStep::Doubled);
+}
+
+#[test]
+fn one_step_is_estimated_at_half_its_step_and_none_asks_for_nothing() {
+    // One step has no coarser companion: the estimate comes from companions at half the step.
     let one = run(json!({"duration": 0.01, "dt": 0.01, "bodies": [small_cloth()]}));
-    assert!(
-        matches!(&one.stats.error.unwrap().outcome, EstimateOutcome::Unavailable { reason } if reason.contains("too few"))
-    );
+    let error = one.stats.error.unwrap();
+    assert_eq!(error.companion_step, CompanionStep::Halved);
+    assert!(matches!(error.outcome, EstimateOutcome::Estimate { max, .. } if max > 0.0 && max.is_finite()));
     let none =
         run(json!({"duration": 0.01, "dt": 0.001, "error_estimate": "none", "bodies": [small_cloth()]}));
     assert_eq!(none.stats.error, None);

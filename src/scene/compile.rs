@@ -73,22 +73,18 @@ pub struct Compiled {
 }
 
 impl Compiled {
-    /// A companion for an error estimate: the same scene over its first `steps` steps
-    /// (`duration` seconds), taken in `steps / factor` steps instead, recording nothing and
-    /// estimating nothing. `None` when that leaves fewer than one step.
-    pub fn companion(&self, factor: u64, steps: u64, duration: f64) -> Option<Self> {
-        let coarse_steps = steps / factor;
-        (coarse_steps >= 1).then(|| {
-            let mut coarse = self.clone();
-            coarse.steps = coarse_steps;
-            coarse.duration = duration;
-            coarse.config.dt = duration / coarse_steps as f64;
-            coarse.output =
-                Output { frames: FrameSelection::None, fields: Vec::new(), ..self.output.clone() };
-            coarse.stop_at_rest = None;
-            coarse.error_estimate = ErrorEstimateName::None;
-            coarse
-        })
+    /// A companion for an error estimate: the same scene over its first `duration` seconds,
+    /// taken in `steps` steps (at least one), recording nothing and estimating nothing.
+    pub fn companion(&self, steps: u64, duration: f64) -> Self {
+        let steps = steps.max(1);
+        let mut companion = self.clone();
+        companion.steps = steps;
+        companion.duration = duration;
+        companion.config.dt = duration / steps as f64;
+        companion.output = Output { frames: FrameSelection::None, fields: Vec::new(), ..self.output.clone() };
+        companion.stop_at_rest = None;
+        companion.error_estimate = ErrorEstimateName::None;
+        companion
     }
 }
 
