@@ -21,6 +21,7 @@
 //! made once before the first step, and only when the scene asks to stop at rest.
 
 mod control;
+mod drape_coefficient;
 mod error_estimate;
 mod recording;
 mod schedule;
@@ -28,6 +29,9 @@ mod schedule;
 use std::time::Instant;
 
 pub use control::Control;
+pub use drape_coefficient::{
+    MAX_ROW_CROSSINGS_PER_TRIANGLE, MAX_ROWS, RASTER_ERROR_BOUND, drape_coefficient,
+};
 pub use error_estimate::{ErrorEstimate, EstimateOutcome};
 pub use recording::{Diverged, Frames, Recording, Samples, Stats, Status};
 
@@ -160,6 +164,13 @@ where
     }
 
     let finished = status == Status::Succeeded;
+    let final_positions: Option<Vec<DVec3>> =
+        finished.then(|| simulation.state().positions.iter().map(|p| p.to_dvec3()).collect());
+    let drape_coefficient = compiled
+        .drape_tester
+        .as_ref()
+        .zip(final_positions.as_ref())
+        .and_then(|(tester, positions)| drape_coefficient(tester, positions, &compiled.model.triangles));
     let stable_dt = simulation.stable_dt();
     let mut stages: Vec<&'static str> = simulation.stages().to_vec();
     let wants_normals =
@@ -189,9 +200,8 @@ where
         stopped_at_rest: rest_time,
         linear_solver: simulation.linear_solve_stats(),
         error: None,
+        drape_coefficient,
     };
-    let final_positions =
-        finished.then(|| simulation.state().positions.iter().map(|p| p.to_dvec3()).collect());
     Outcome { recording: recorder.finish(compiled, stats, finished), final_positions }
 }
 
