@@ -132,3 +132,31 @@ fn an_outline_runs_along_folds_not_across_flat_edges() {
     let perimeter = 1.0 + 1.0 + diagonal + 2.0 * 0.8f64.hypot(0.2);
     assert!((outline_bound(&folded, &triangles) - perimeter).abs() < 1e-15);
 }
+
+/// A specimen whose annulus hangs as a cone at angle φ below the horizontal casts a shadow that
+/// is its outer ring's regular polygon shrunk to radius `r + (R - r) cos φ`, so its coefficient
+/// is `(poly(r + (R - r) cos φ) - π r²) / (poly(R) - π r²)`, `poly(ρ) = 3n ρ² sin(2π / 6n)` for
+/// `n` rings: at two resolutions, each within the raster's bound of its exact value.
+#[test]
+fn a_conical_drape_has_the_coefficient_of_its_shrunk_outline() {
+    let (big, small) = (0.15, 0.09);
+    for rings in [10, 20] {
+        let polygon = |rho: f64| 3.0 * rings as f64 * rho * rho * (TAU / (6 * rings) as f64).sin();
+        for angle in [0.3f64, 0.8, 1.2] {
+            let (mut model, tester) = tester_with(rings);
+            let axis = DVec3::new(0.01, 0.5, -0.02);
+            for p in &mut model.positions {
+                let radial = *p - axis;
+                let rho = radial.length();
+                if rho > small {
+                    let out = rho - small;
+                    *p = axis + radial * ((small + out * angle.cos()) / rho) - DVec3::Y * (out * angle.sin());
+                }
+            }
+            let exact = (polygon(small + (big - small) * angle.cos()) - PI * small * small)
+                / (polygon(big) - PI * small * small);
+            let d = drape_coefficient(&tester, &model.positions, &model.triangles).unwrap();
+            assert!((d - exact).abs() <= RASTER_ERROR_BOUND, "{rings} rings at {angle}: {d} against {exact}");
+        }
+    }
+}
