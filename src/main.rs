@@ -3,15 +3,17 @@
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
+use std::sync::atomic::AtomicUsize;
 
 use clap::{Parser, Subcommand};
 
 use drape::config::LimitArgs;
 use drape::jobs::{admit_for_table, sweep_over_limit};
 use drape::output::{Format, encode};
+use drape::progress;
 use drape::run::{Control, Status, execute};
 use drape::scene::Scene;
-use drape::sweep::{Sweep, run_locally_with, write_csv, write_svg};
+use drape::sweep::{Sweep, Thresholds, run_locally_with, write_csv, write_svg};
 
 /// Cloth and mass-spring simulation.
 #[derive(Parser)]
@@ -37,6 +39,9 @@ enum Command {
         /// the format cannot carry are not recorded, and named on standard error.
         #[arg(short, long)]
         format: Option<Format>,
+        /// Draw no progress bar (one is drawn on standard error only when it is a terminal).
+        #[arg(short, long)]
+        quiet: bool,
         /// The limits the run must fit (as `drape serve` applies them; the memory budget is the
         /// run's alone).
         #[command(flatten)]
@@ -58,6 +63,17 @@ enum Command {
         /// Refuse sweeps with more variants than this.
         #[arg(long, default_value_t = 1000)]
         max_variants: u64,
+        /// Draw no progress bar (one is drawn on standard error only when it is a terminal).
+        #[arg(short, long)]
+        quiet: bool,
+        /// Exit 1 if a run's error (against the reference, else its own estimate) is above this,
+        /// in metres, or a run did not succeed.
+        #[arg(long)]
+        max_error: Option<f64>,
+        /// Exit 1 if an integrator's observed convergence order is below this (needs `/dt` varied
+        /// and a reference).
+        #[arg(long)]
+        min_order: Option<f64>,
         /// The limits every run must fit (as `drape serve` applies them; the memory budget is
         /// shared by the runs at once).
         #[command(flatten)]
@@ -68,11 +84,21 @@ enum Command {
 fn main() -> ExitCode {
     match Cli::parse().command {
         Command::Serve(config) => serve(*config),
-        Command::Run { scene, output, format, limits } => run(&scene, output.as_deref(), format, &limits),
-        Command::Sweep { sweep, csv, plot, threads, max_variants, limits } => {
+        Command::Run { scene, output, format, quiet, limits } => {
+            run(&scene, output.as_deref(), format, progress::wanted(quiet), &limits)
+        }
+        Command::Sweep { sweep, csv, plot, threads, max_variants, quiet, max_error, min_order, limits } => {
             let threads =
                 threads.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
-            run_sweep(&sweep, SweepOptions { csv, plot: plot.as_deref(), threads, max_variants }, &limits)
+            let options = SweepOptions {
+                csv,
+                plot: plot.as_deref(),
+                threads,
+                max_variants,
+                progress: progress::wanted(quiet),
+                thresholds: Thresholds { max_error, min_order },
+            };
+            run_sweep(&sweep, options, &limits)
         }
     }
 }
@@ -123,10 +149,12 @@ struct SweepOptions<'a> {
     plot: Option<&'a Path>,
     threads: usize,
     max_variants: u64,
+    progress: bool,
+    thresholds: Thresholds,
 }
 
 fn run_sweep(path: &Path, options: SweepOptions<'_>, limits: &LimitArgs) -> ExitCode {
-    let SweepOptions { csv, plot, threads, max_variants } = options;
+    let SweepOptions { csv, plot, threads, max_variants, progress, thresholds } = options;
     let text = match read_input(path) {
         Ok(text) => text,
         Err(code) => return code,
@@ -142,6 +170,10 @@ fn run_sweep(path: &Path, options: SweepOptions<'_>, limits: &LimitArgs) -> Exit
             return ExitCode::from(2);
         }
     };
+    if let Err(reason) = thresholds.check(&sweep) {
+        eprintln!("drape: {reason}");
+        return ExitCode::from(2);
+    }
     let runs_at_once = threads.max(1).min(sweep.variants.len() + usize::from(sweep.reference.is_some()));
     let limits = limits.limits(runs_at_once);
     let document: serde_json::Value = serde_json::from_slice(&text).unwrap_or_default();
@@ -157,7 +189,11 @@ fn run_sweep(path: &Path, options: SweepOptions<'_>, limits: &LimitArgs) -> Exit
             format!("the run exceeds the limits: {}", reasons.join("; "))
         })
     };
-    let table = run_locally_with(&sweep, threads, &compile);
+    let finished = AtomicUsize::new(0);
+    let runs = sweep.variants.len() + usize::from(sweep.reference.is_some());
+    let table = progress::follow_sweep(progress, &finished, runs, || {
+        run_locally_with(&sweep, threads, &compile, &finished)
+    });
     let mut out = std::io::BufWriter::new(std::io::stdout().lock());
     let printed = if csv {
         write_csv(&table, &mut out)
@@ -172,16 +208,26 @@ fn run_sweep(path: &Path, options: SweepOptions<'_>, limits: &LimitArgs) -> Exit
         }
         None => Ok(()),
     };
-    match printed.and_then(|_| out.flush()).and(plotted) {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("drape: cannot write the table: {e}");
-            ExitCode::FAILURE
-        }
+    if let Err(e) = printed.and_then(|_| out.flush()).and(plotted) {
+        eprintln!("drape: cannot write the table: {e}");
+        return ExitCode::FAILURE;
     }
+    let crossings = thresholds.crossings(&table);
+    if crossings.is_empty() {
+        return ExitCode::SUCCESS;
+    }
+    eprintln!("drape: {} crosses the thresholds:", path.display());
+    crossings.iter().for_each(|line| eprintln!("  {line}"));
+    ExitCode::FAILURE
 }
 
-fn run(path: &Path, output: Option<&Path>, format: Option<Format>, limits: &LimitArgs) -> ExitCode {
+fn run(
+    path: &Path,
+    output: Option<&Path>,
+    format: Option<Format>,
+    show_progress: bool,
+    limits: &LimitArgs,
+) -> ExitCode {
     let text = match read_input(path) {
         Ok(text) => text,
         Err(code) => return code,
@@ -223,7 +269,10 @@ fn run(path: &Path, output: Option<&Path>, format: Option<Format>, limits: &Limi
             return ExitCode::from(2);
         }
     };
-    let recording = execute(&compiled, &Control::new());
+    let control = Control::new();
+    let recording = progress::follow_run(show_progress, &control, compiled.steps, compiled.config.dt, || {
+        execute(&compiled, &control)
+    });
     if recording.stats.status == Status::Failed {
         let reason = recording.stats.failure.as_deref().unwrap_or("a stage met more than the run may hold");
         eprintln!("drape: the run of {} failed: {reason}", path.display());

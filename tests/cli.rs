@@ -178,3 +178,100 @@ fn a_run_that_meets_more_self_collision_pairs_than_it_may_hold_exits_1_with_the_
     assert!(stderr.contains("failed: self-collision met") && stderr.contains("candidate pairs"), "{stderr}");
     assert!(out.stdout.is_empty());
 }
+
+/// `drape` with `args` in a pseudo-terminal (util-linux `script`), as a person at a terminal runs
+/// it: what the terminal received.
+fn drape_in_terminal(args: &str) -> String {
+    let command = format!("{} {args}", env!("CARGO_BIN_EXE_drape"));
+    let out = Command::new("script")
+        .args(["-qec", &command, "/dev/null"])
+        .env_remove("DRAPE_MEMORY_BUDGET")
+        .env_remove("DRAPE_MAX_STEPS")
+        .stdin(Stdio::null())
+        .output()
+        .expect("util-linux `script` runs a command in a pseudo-terminal");
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stdout));
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+#[test]
+fn a_run_and_a_sweep_show_progress_on_a_terminal_and_nowhere_else() {
+    let dir = tempfile::tempdir().unwrap();
+    // 20,000 steps: long enough that the first redraw comes before the end.
+    let scene = dir.path().join("chain.json");
+    std::fs::write(
+        &scene,
+        r#"{"duration": 2, "dt": 0.0001, "bodies": [{"type": "chain", "count": 50}], "output": {"frames": "final"}}"#,
+    )
+    .unwrap();
+    let result = dir.path().join("result.json");
+    let args = format!("run {} -o {}", scene.display(), result.display());
+    let shown = drape_in_terminal(&args);
+    assert!(shown.contains("/20000 steps") && shown.contains(" left"), "{shown:?}");
+    assert!(std::fs::read(&result).unwrap().starts_with(b"{"));
+    let quiet = drape_in_terminal(&format!("{args} --quiet"));
+    assert!(!quiet.contains("steps"), "{quiet:?}");
+
+    let sweep = dir.path().join("sweep.json");
+    std::fs::write(
+        &sweep,
+        format!(
+            r#"{{"scene": {}, "vary": {{"/dt": [0.0001, 0.0002, 0.0004]}}}}"#,
+            std::fs::read_to_string(&scene).unwrap()
+        ),
+    )
+    .unwrap();
+    let shown = drape_in_terminal(&format!("sweep {} --csv", sweep.display()));
+    assert!(shown.contains("/3 runs"), "{shown:?}");
+
+    // Not a terminal: standard error carries nothing for a run that succeeds.
+    let piped =
+        Command::new(env!("CARGO_BIN_EXE_drape")).args(["run", scene.to_str().unwrap()]).output().unwrap();
+    assert!(piped.status.success());
+    assert_eq!(String::from_utf8_lossy(&piped.stderr), "");
+}
+
+#[test]
+fn drape_sweep_fails_a_ci_step_whose_orders_or_errors_cross_the_thresholds() {
+    let sweep = "examples/sweeps/single_spring_orders.json";
+    let gated = |flags: &[&str]| {
+        let out = Command::new(env!("CARGO_BIN_EXE_drape"))
+            .args(["sweep", sweep, "--csv", "--quiet"])
+            .args(flags)
+            .env_remove("DRAPE_MEMORY_BUDGET")
+            .output()
+            .unwrap();
+        (out.status.code(), String::from_utf8(out.stderr).unwrap())
+    };
+    // The sweep's orders are about 1, 1, 2, 4 and 1 (src/sweep/tests.rs checks them).
+    assert_eq!(gated(&["--min-order", "0.8"]), (Some(0), String::new()));
+    let (code, stderr) = gated(&["--min-order", "1.5"]);
+    assert_eq!(code, Some(1), "{stderr}");
+    assert_eq!(stderr.lines().filter(|l| l.contains("is below --min-order 1.5")).count(), 3, "{stderr}");
+    assert!(!stderr.contains("verlet") && !stderr.contains("rk4"), "{stderr}");
+    // RK4's largest error is about 1e-8 m, explicit Euler's about 2e-2 m.
+    let (code, stderr) = gated(&["--max-error", "1e-3"]);
+    assert_eq!(code, Some(1), "{stderr}");
+    assert!(stderr.contains("/integrator = explicit_euler, /dt = 0.004: error "), "{stderr}");
+    assert!(!stderr.contains("rk4"), "{stderr}");
+    assert_eq!(gated(&["--max-error", "1"]).0, Some(0));
+    // A threshold that cannot apply is a usage error, before anything runs.
+    let out = Command::new(env!("CARGO_BIN_EXE_drape"))
+        .args(["sweep", "-", "--min-order", "1"])
+        .stdin(Stdio::piped())
+        .stderr(Stdio::piped())
+        .stdout(Stdio::piped())
+        .spawn()
+        .and_then(|mut child| {
+            child.stdin.take().unwrap().write_all(
+                br#"{"scene": {"duration": 0.1, "bodies": [{"type": "chain", "count": 3}]}, "vary": {"/dt": [0.01, 0.02]}}"#,
+            )?;
+            child.wait_with_output()
+        })
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    assert!(
+        String::from_utf8_lossy(&out.stderr)
+            .contains("--min-order needs a sweep that varies /dt and has a reference")
+    );
+}

@@ -20,6 +20,7 @@
 //! before it has begun to fall. The velocities of the step before each check are kept in a buffer
 //! made once before the first step, and only when the scene asks to stop at rest.
 
+mod colliders;
 mod control;
 mod drape_coefficient;
 mod error_estimate;
@@ -28,6 +29,7 @@ mod schedule;
 
 use std::time::Instant;
 
+pub use colliders::{ColliderShape, RecordedCollider, RigidTransform};
 pub use control::Control;
 pub use drape_coefficient::{
     MAX_ROW_CROSSINGS_PER_TRIANGLE, MAX_ROWS, RASTER_ERROR_BOUND, drape_coefficient,
@@ -322,6 +324,13 @@ where
                 energy: f.energy,
                 strain: f.strain,
             },
+            colliders: compiled
+                .config
+                .colliders
+                .iter()
+                .enumerate()
+                .map(|(index, collider)| RecordedCollider::from_solver(index, collider))
+                .collect(),
             has_final,
             stats,
         }

@@ -10,6 +10,7 @@
 //! queues each variant as a job.
 
 mod expand;
+mod gate;
 mod local;
 mod plot;
 mod table;
@@ -17,6 +18,7 @@ mod table;
 use serde_json::Value;
 use thiserror::Error;
 
+pub use gate::Thresholds;
 pub use local::{run_locally, run_locally_with};
 pub use plot::write_svg;
 pub use table::{Convergence, Outcome, Row, Table, compile_for_table, final_positions, write_csv};

@@ -141,3 +141,45 @@ fn the_csv_reads_back_with_a_standard_reader_and_the_svg_is_xml() {
         assert_eq!(polyline.attribute("points").unwrap().split(' ').count(), 3);
     }
 }
+
+#[test]
+fn thresholds_name_exactly_the_rows_and_groups_that_cross_them() {
+    let table = order_sweep();
+    let orders = |min_order| Thresholds { max_error: None, min_order: Some(min_order) }.crossings(&table);
+    assert_eq!(orders(0.8), Vec::<String>::new());
+    // First-order methods fall below 1.5; Verlet (2) and RK4 (4) keep it.
+    let low = orders(1.5);
+    assert_eq!(low.len(), 3, "{low:?}");
+    for (line, integrator) in low.iter().zip(["explicit_euler", "symplectic_euler", "implicit_euler"]) {
+        assert!(line.starts_with(&format!("/integrator = {integrator}: order ")), "{line}");
+    }
+    // The worst row against the reference: a bound just above it passes, just below names it alone.
+    let (worst, worst_error) = table
+        .rows
+        .iter()
+        .map(|r| (r, r.reference_error.unwrap().0))
+        .max_by(|a, b| a.1.total_cmp(&b.1))
+        .unwrap();
+    let errors = |max_error| Thresholds { max_error: Some(max_error), min_order: None }.crossings(&table);
+    assert_eq!(errors(worst_error * 1.001), Vec::<String>::new());
+    let crossed = errors(worst_error * 0.999);
+    assert_eq!(crossed.len(), 1, "{crossed:?}");
+    let dt = worst.values[1].as_f64().unwrap();
+    assert!(
+        crossed[0].starts_with(&format!("/integrator = {}, /dt = {dt}: error ", worst.integrator)),
+        "{crossed:?}"
+    );
+}
+
+#[test]
+fn thresholds_that_cannot_apply_are_refused_before_the_sweep_runs() {
+    let no_reference = sweep(json!({"scene": single_spring(), "vary": {"/dt": [0.01, 0.02]}})).unwrap();
+    let min_order = Thresholds { max_error: None, min_order: Some(1.0) };
+    assert_eq!(
+        min_order.check(&no_reference),
+        Err("--min-order needs a sweep that varies /dt and has a reference".into())
+    );
+    assert_eq!(Thresholds { max_error: Some(1e-3), min_order: None }.check(&no_reference), Ok(()));
+    let negative = Thresholds { max_error: Some(-1.0), min_order: None };
+    assert_eq!(negative.check(&no_reference), Err("--max-error must be a positive number, got -1".into()));
+}
