@@ -104,9 +104,11 @@ pub fn disk_layout(rings: usize) -> (Vec<[f64; 2]>, Vec<[usize; 3]>) {
     (points, triangles)
 }
 
-impl Model {
-    /// Adds a disk; its particles are numbered as [`disk_index`] says.
-    pub fn add_disk(&mut self, disk: &Disk) -> Range<usize> {
+impl Disk {
+    /// The disk as the triangle mesh it is built as, its vertices numbered as [`disk_index`]
+    /// says; any builder of meshes builds it.
+    pub fn mesh(&self) -> Mesh {
+        let disk = self;
         let (points, triangles) = disk_layout(disk.rings);
         let radius = 0.5 * disk.diameter;
         let vertices = points
@@ -121,7 +123,7 @@ impl Model {
                     }
             })
             .collect();
-        self.add_mesh(&Mesh {
+        Mesh {
             vertices,
             triangles,
             mass: disk.mass,
@@ -129,7 +131,14 @@ impl Model {
             structural: disk.structural,
             bending: disk.bending,
             pins: disk.pins.iter().map(|&[ring, k]| disk_index(ring, k)).collect(),
-        })
+        }
+    }
+}
+
+impl Model {
+    /// Adds a disk; its particles are numbered as [`disk_index`] says.
+    pub fn add_disk(&mut self, disk: &Disk) -> Range<usize> {
+        self.add_mesh(&disk.mesh())
     }
 }
 
