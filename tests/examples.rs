@@ -92,6 +92,7 @@ fn every_example_runs_as_drape_run_runs_it() {
         "jelly_cube.json",
         "self_collision.json",
         "strain_limited.json",
+        "drape_tester.json",
     ] {
         assert!(names.iter().any(|n| n == name), "examples/{name} is missing");
     }
@@ -111,6 +112,7 @@ fn every_example_runs_as_drape_run_runs_it() {
                 &["gravity", "drag", "springs", "sphere", "plane"]
             }
             "tablecloth.json" => &["gravity", "drag", "springs", "cylinder", "plane"],
+            "drape_tester.json" => &["gravity", "drag", "springs", "cylinder"],
             // Aerodynamic wind needs no vertex normals; the output's `normals` field does.
             "flag.json" => &["gravity", "drag", "springs", "wind", "normals"],
             "jelly_cube.json" => &["gravity", "drag", "springs", "plane"],
@@ -304,4 +306,97 @@ fn strain_limit_holds_the_cloth_over_the_sphere_to_ten_percent() {
     let mut worst_free: f64 = 0.0;
     run_checked(&free.compile(), |sim| worst_free = worst_free.max(sim.max_strain()));
     assert!(worst_free > 0.15, "without the limit the soft cloth should stretch more: {worst_free}");
+}
+
+/// The area of the union of `triangles` over `points` (`[x, z]`) and a disk, counted the plain
+/// way: the cells of a square bitmap of side `cell` whose centres lie in a triangle (by the signs
+/// of three cross products) or in the disk. An estimate independent of the run's scanline
+/// measurement, off by at most the cells the outline of length `outline` crosses:
+/// `2 (outline / cell + 4) cell²`.
+fn bitmap_area(points: &[[f64; 2]], triangles: &[[u32; 3]], disk: ([f64; 2], f64), cell: f64) -> f64 {
+    let (low, high) = points.iter().fold(([f64::MAX; 2], [f64::MIN; 2]), |(lo, hi), p| {
+        ([lo[0].min(p[0]), lo[1].min(p[1])], [hi[0].max(p[0]), hi[1].max(p[1])])
+    });
+    let (nx, nz) =
+        (((high[0] - low[0]) / cell).ceil() as usize + 1, ((high[1] - low[1]) / cell).ceil() as usize + 1);
+    let mut covered = vec![false; nx * nz];
+    let centre = |i: usize, k: usize| [low[0] + (i as f64 + 0.5) * cell, low[1] + (k as f64 + 0.5) * cell];
+    let cross =
+        |a: [f64; 2], b: [f64; 2], c: [f64; 2]| (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]);
+    for t in triangles {
+        let [a, b, c] = t.map(|i| points[i as usize]);
+        let cell_of =
+            |x: f64, origin: f64, n: usize| (((x - origin) / cell).floor().max(0.0) as usize).min(n - 1);
+        let (i0, i1) =
+            (cell_of(a[0].min(b[0]).min(c[0]), low[0], nx), cell_of(a[0].max(b[0]).max(c[0]), low[0], nx));
+        let (k0, k1) =
+            (cell_of(a[1].min(b[1]).min(c[1]), low[1], nz), cell_of(a[1].max(b[1]).max(c[1]), low[1], nz));
+        for k in k0..=k1 {
+            for i in i0..=i1 {
+                let q = centre(i, k);
+                let s = [cross(a, b, q), cross(b, c, q), cross(c, a, q)];
+                if s.iter().all(|&x| x >= 0.0) || s.iter().all(|&x| x <= 0.0) {
+                    covered[k * nx + i] = true;
+                }
+            }
+        }
+    }
+    let ([cx, cz], r) = disk;
+    let count = (0..nz)
+        .flat_map(|k| (0..nx).map(move |i| (i, k)))
+        .filter(|&(i, k)| {
+            let q = centre(i, k);
+            covered[k * nx + i] || (q[0] - cx).hypot(q[1] - cz) <= r
+        })
+        .count();
+    count as f64 * cell * cell
+}
+
+/// The drape tester: an 18 cm support under a 30 cm specimen. The specimen drapes (its
+/// coefficient between 0 and 1, with the six folds its rings' symmetry gives), its shape is
+/// steady over the last second, and the reported coefficient agrees with an independent count of
+/// the shadow's bitmap cells within that count's own error.
+#[test]
+fn drape_tester_reports_the_coefficient_of_its_shadow() {
+    let compiled = scene("drape_tester.json").compile();
+    let tester = compiled.drape_tester.clone().expect("the example is a drape tester");
+    let recording = run::execute(&compiled, &Control::new());
+    assert_eq!(recording.stats.status, Status::Succeeded);
+    let reported = recording.stats.drape_coefficient.expect("a coefficient");
+    assert!(reported > 0.2 && reported < 0.8, "{reported}");
+
+    let frames = recording.frames.positions.as_ref().unwrap().to_f64();
+    let n = recording.particles;
+    let frame = |f: usize| -> Vec<DVec3> {
+        frames[3 * n * f..3 * n * (f + 1)].chunks(3).map(DVec3::from_slice).collect()
+    };
+    let count = recording.frames.len();
+    let last = frame(count - 1);
+    assert_eq!(run::drape_coefficient(&tester, &last, &recording.triangles), Some(reported));
+    let a_second_before = run::drape_coefficient(&tester, &frame(count - 31), &recording.triangles).unwrap();
+    assert!((a_second_before - reported).abs() < 2e-3, "{a_second_before} then {reported}");
+
+    let points: Vec<[f64; 2]> = last.iter().map(|p| [p.x, p.z]).collect();
+    let cell = 2.5e-4;
+    let shadow =
+        bitmap_area(&points, &recording.triangles, (tester.support_center, tester.support_radius), cell);
+    let annulus = tester.specimen_area - tester.support_area();
+    let independent = (shadow - tester.support_area()) / annulus;
+    // The outline of six folds is well under 3 m (ten times the specimen's circumference).
+    let bitmap_error = 2.0 * (3.0 / cell + 4.0) * cell * cell / annulus;
+    assert!(
+        (independent - reported).abs() <= bitmap_error + run::RASTER_ERROR_BOUND,
+        "bitmap {independent}, reported {reported}, bound {bitmap_error}"
+    );
+
+    // Six folds: the outer ring's projected radius has six maxima around the axis.
+    let rings = 15;
+    let first = 1 + 3 * rings * (rings - 1);
+    let radius: Vec<f64> = last[first..].iter().map(|p| p.x.hypot(p.z)).collect();
+    let m = radius.len();
+    let smooth: Vec<f64> =
+        (0..m).map(|i| (0..5).map(|k| radius[(i + m + k - 2) % m]).sum::<f64>() / 5.0).collect();
+    let folds =
+        (0..m).filter(|&i| smooth[i] > smooth[(i + m - 1) % m] && smooth[i] >= smooth[(i + 1) % m]).count();
+    assert_eq!(folds, 6);
 }

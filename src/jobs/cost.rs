@@ -13,7 +13,8 @@
 //! memory of `drape run` on cloths, lattices and collider sets of several sizes, with each
 //! integrator and stage, stays under the estimate plus [`MEMORY_RESERVE`](crate::config::MEMORY_RESERVE).
 
-use crate::scene::{Body, Compiled, Field, FrameSelection, IntegratorName, Precision, Scene};
+use crate::run::{MAX_ROW_CROSSINGS_PER_TRIANGLE, MAX_ROWS};
+use crate::scene::{Body, ClothShape, Compiled, Field, FrameSelection, IntegratorName, Precision, Scene};
 use crate::solver::{WindModel, candidate_pairs};
 
 use super::record::Plan;
@@ -64,6 +65,11 @@ const HASH_BYTES_PER_SPRING: u64 = 8;
 /// 25 bytes.
 const BYTES_PER_RECORDED_VALUE: u64 = 8 + 2 * 25;
 
+/// Bytes the drape coefficient's measurement takes per specimen triangle (its three edges, its
+/// place in the sweep order, its span) and per particle (its final position and projection).
+const DRAPE_COEFFICIENT_BYTES_PER_TRIANGLE: u64 = 96;
+const DRAPE_COEFFICIENT_BYTES_PER_PARTICLE: u64 = 40;
+
 /// What one stage of a run costs.
 #[derive(Clone, Debug, PartialEq)]
 pub struct StageCost {
@@ -111,7 +117,7 @@ impl Cost {
         let listed = scene
             .bodies
             .iter()
-            .filter(|b| !matches!(b, Body::Cloth(_)))
+            .filter(|b| !matches!(b, Body::Cloth(c) if c.shape == ClothShape::Rectangle))
             .map(Body::spring_count)
             .fold(0, u64::saturating_add)
             .min(springs);
@@ -179,6 +185,22 @@ impl Cost {
             stage("self_collision", "/self_collision/thickness".into(), per_step(work), memory);
         }
 
+        if let Some(tester) = &compiled.drape_tester {
+            // Measured once, at the end: at most the row crossings and rows the measurement
+            // allows itself before it starts, and the outline's edges.
+            let triangles = tester.triangles.len() as u64;
+            let crossings = triangles.saturating_mul(MAX_ROW_CROSSINGS_PER_TRIANGLE).max(MAX_ROWS);
+            let work = crossings.saturating_add(MAX_ROWS).saturating_add(triangles.saturating_mul(3));
+            let memory = triangles
+                .saturating_mul(DRAPE_COEFFICIENT_BYTES_PER_TRIANGLE)
+                .saturating_add(particles.saturating_mul(DRAPE_COEFFICIENT_BYTES_PER_PARTICLE));
+            let specimen = scene
+                .bodies
+                .iter()
+                .position(|b| matches!(b, Body::Cloth(c) if c.shape == ClothShape::Disk))
+                .unwrap_or(0);
+            stage("drape_coefficient", format!("/bodies/{specimen}/shape"), work, memory);
+        }
         let (frames, values) = recorded(compiled, plan);
         if values > 0 {
             let pointer =

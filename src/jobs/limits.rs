@@ -335,6 +335,31 @@ mod tests {
         }
     }
 
+    /// A drape tester's coefficient is measured once, within the row crossings it allows itself:
+    /// 4096 per triangle of its 6·15² (or 2²⁰ rows' worth at least), the rows, and three edges
+    /// per triangle; a disk's particles and springs are counted exactly, its springs as listed.
+    #[test]
+    fn a_drape_tester_costs_its_measurement_and_a_disk_its_exact_counts() {
+        let json = r#"{"duration": 1, "dt": 0.01, "error_estimate": "none",
+            "bodies": [{"type": "cloth", "shape": "disk", "diameter": 0.3, "resolution": [31, 31]}],
+            "colliders": [{"type": "cylinder", "center": [0, 0.4, 0], "radius": 0.09, "height": 0.2}]}"#;
+        let admitted = Limits::default().admit(&scene(json)).unwrap();
+        assert_eq!((admitted.plan.particles, admitted.plan.springs), (721, 18 * 225));
+        let stage = admitted.cost.stages.iter().find(|s| s.stage == "drape_coefficient").unwrap();
+        assert_eq!(stage.pointer, "/bodies/0/shape");
+        let triangles = 6 * 225;
+        assert_eq!(stage.work, (triangles * 4096u64).max(1 << 20) + (1 << 20) + 3 * triangles);
+        let rectangle = json.replace(
+            r#""shape": "disk", "diameter": 0.3, "resolution": [31, 31]"#,
+            r#""resolution": [27, 27]"#,
+        );
+        let rectangle = Limits::default().admit(&scene(&rectangle)).unwrap();
+        assert!(rectangle.cost.stages.iter().all(|s| s.stage != "drape_coefficient"));
+        let huge = json.replace("[31, 31]", "[100000, 100000]");
+        let errors = Limits::default().admit(&scene(&huge)).unwrap_err();
+        assert_eq!(errors[0].pointer, "/bodies/0/resolution");
+    }
+
     #[test]
     fn memory_counts_every_stage_and_a_companion_beside_the_run() {
         let json = r#"{"duration": 1, "dt": 0.01, "bodies": [{"type": "cloth", "resolution": [10, 10]}],

@@ -225,6 +225,9 @@ impl Serialize for StatsView<'_> {
         if let Some(t) = st.stopped_at_rest {
             map.serialize_entry("stopped_at_rest", &t)?;
         }
+        if let Some(d) = st.drape_coefficient {
+            map.serialize_entry("drape_coefficient", &d)?;
+        }
         if let Some(ls) = &st.linear_solver {
             let solver = serde_json::json!({
                 "tolerance": ls.tolerance,

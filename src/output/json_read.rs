@@ -319,6 +319,7 @@ fn read_stats(s: &Value) -> Result<Stats, ReadError> {
         })?,
         failure: s["failure"].as_str().map(str::to_string),
         stopped_at_rest: optional(s.get("stopped_at_rest"), |v| number("stats.stopped_at_rest", v))?,
+        drape_coefficient: optional(s.get("drape_coefficient"), |v| number("stats.drape_coefficient", v))?,
         linear_solver: optional(s.get("linear_solver"), |l| {
             let mean = number("stats.linear_solver.mean_iterations", &l["mean_iterations"])?;
             Ok(LinearSolveStats {

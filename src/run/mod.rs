@@ -22,6 +22,7 @@
 
 mod colliders;
 mod control;
+mod drape_coefficient;
 mod error_estimate;
 mod recording;
 mod schedule;
@@ -30,6 +31,9 @@ use std::time::Instant;
 
 pub use colliders::{ColliderShape, RecordedCollider, RigidTransform};
 pub use control::Control;
+pub use drape_coefficient::{
+    MAX_ROW_CROSSINGS_PER_TRIANGLE, MAX_ROWS, RASTER_ERROR_BOUND, drape_coefficient,
+};
 pub use error_estimate::{
     CompanionStep, ErrorEstimate, EstimateOutcome, companion_step, planned_companion_steps,
 };
@@ -164,6 +168,13 @@ where
     }
 
     let finished = status == Status::Succeeded;
+    let final_positions: Option<Vec<DVec3>> =
+        finished.then(|| simulation.state().positions.iter().map(|p| p.to_dvec3()).collect());
+    let drape_coefficient = compiled
+        .drape_tester
+        .as_ref()
+        .zip(final_positions.as_ref())
+        .and_then(|(tester, positions)| drape_coefficient(tester, positions, &compiled.model.triangles));
     let stable_dt = simulation.stable_dt();
     let mut stages: Vec<&'static str> = simulation.stages().to_vec();
     let wants_normals =
@@ -193,9 +204,8 @@ where
         stopped_at_rest: rest_time,
         linear_solver: simulation.linear_solve_stats(),
         error: None,
+        drape_coefficient,
     };
-    let final_positions =
-        finished.then(|| simulation.state().positions.iter().map(|p| p.to_dvec3()).collect());
     Outcome { recording: recorder.finish(compiled, stats, finished), final_positions }
 }
 

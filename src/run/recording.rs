@@ -151,6 +151,9 @@ pub struct Stats {
     pub linear_solver: Option<LinearSolveStats>,
     /// The run's estimate of its own error, when asked for and the run finished.
     pub error: Option<ErrorEstimate>,
+    /// The drape coefficient of the final state, when the scene is a drape tester
+    /// ([`DrapeTester`](crate::scene::DrapeTester)) and the run succeeded.
+    pub drape_coefficient: Option<f64>,
 }
 
 /// Everything a run produced.

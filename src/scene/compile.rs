@@ -9,9 +9,10 @@
 
 use glam::DVec3;
 
+use super::drape_tester::DrapeTester;
 use super::types::{
-    Body, ColliderSpec, ErrorEstimateName, FrameSelection, IntegratorName, OrientationName, Output,
-    Precision, Scene, SpringSpec, WindModelName, WindSpec,
+    Body, ClothShape, ColliderSpec, ErrorEstimateName, FrameSelection, IntegratorName, OrientationName,
+    Output, Precision, Scene, SpringSpec, WindModelName, WindSpec,
 };
 use crate::solver::{self, Collider, IntegratorKind, IntegratorSettings, Model, Shape, SpringParams};
 
@@ -70,6 +71,8 @@ pub struct Compiled {
     pub stop_at_rest: Option<f64>,
     /// How the run estimates its own error.
     pub error_estimate: ErrorEstimateName,
+    /// The drape tester the scene is, if it is one: the run then reports the drape coefficient.
+    pub drape_tester: Option<DrapeTester>,
 }
 
 impl Compiled {
@@ -84,6 +87,7 @@ impl Compiled {
         companion.output = Output { frames: FrameSelection::None, fields: Vec::new(), ..self.output.clone() };
         companion.stop_at_rest = None;
         companion.error_estimate = ErrorEstimateName::None;
+        companion.drape_tester = None;
         companion
     }
 }
@@ -105,12 +109,15 @@ impl Scene {
     /// Builds the model and plans the run.
     pub fn compile(&self) -> Compiled {
         let mut model = Model::default();
+        let mut body_triangles = Vec::with_capacity(self.bodies.len());
         let bodies = self
             .bodies
             .iter()
             .enumerate()
             .map(|(index, body)| {
+                let first_triangle = model.triangles.len();
                 let range = add_body(&mut model, body);
+                body_triangles.push(first_triangle..model.triangles.len());
                 BodyInfo {
                     name: body.name().map_or_else(|| format!("{}{index}", body.type_name()), str::to_string),
                     kind: body.type_name(),
@@ -119,6 +126,7 @@ impl Scene {
                 }
             })
             .collect();
+        let drape_tester = DrapeTester::find(self, &model, &body_triangles);
 
         let integrator = self.integrator.kind();
         let (target_dt, dt_source) = match self.dt {
@@ -153,6 +161,7 @@ impl Scene {
             output: self.output.clone(),
             stop_at_rest: self.stop_at_rest,
             error_estimate: self.error_estimate,
+            drape_tester,
         }
     }
 
@@ -206,6 +215,7 @@ fn params(spec: SpringSpec) -> SpringParams {
 fn add_body(model: &mut Model, body: &Body) -> std::ops::Range<usize> {
     let v = DVec3::from_array;
     match body {
+        Body::Cloth(c) if c.shape == ClothShape::Disk => model.add_disk(&c.solver_disk()),
         Body::Cloth(c) => model.add_cloth(&solver::Cloth {
             size: c.size,
             resolution: c.resolution,

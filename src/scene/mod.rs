@@ -8,6 +8,8 @@
 //! JSON Schema's `integer` does. This module knows the solver's inputs but nothing of HTTP.
 
 mod compile;
+mod disk;
+mod drape_tester;
 mod error;
 mod parse;
 mod types;
@@ -15,6 +17,8 @@ mod validate;
 mod whole;
 
 pub use compile::{BodyInfo, Compiled, DtSource};
+pub use disk::DEFAULT_DIAMETER;
+pub use drape_tester::DrapeTester;
 pub use error::{FieldError, SceneError};
 pub use types::*;
 

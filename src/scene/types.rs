@@ -187,6 +187,7 @@ impl Body {
     /// How many particles the body will have, computed without building it (saturating).
     pub fn particle_count(&self) -> u64 {
         match self {
+            Self::Cloth(c) if c.shape == ClothShape::Disk => c.disk_particle_count(),
             Self::Cloth(c) => product(&c.resolution),
             Self::Chain(c) => c.count as u64,
             Self::Lattice(l) => product(&l.resolution),
@@ -199,6 +200,7 @@ impl Body {
     pub fn spring_count(&self) -> u64 {
         let pairs = |n: u64, reach: u64| n.saturating_sub(reach);
         match self {
+            Self::Cloth(c) if c.shape == ClothShape::Disk => c.disk_spring_count(),
             Self::Cloth(c) => {
                 let (nx, ny) = (c.resolution[0] as u64, c.resolution[1] as u64);
                 let grid = |di: u64, dj: u64| pairs(nx, di).saturating_mul(pairs(ny, dj));
@@ -278,12 +280,28 @@ pub enum OrientationName {
     Vertical,
 }
 
-/// A cloth: particle `(i, j)` is index `j * nx + i`, `i` along `size[0]`.
+/// A cloth's outline.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ClothShape {
+    /// A rectangular grid of `size` (the default).
+    #[default]
+    Rectangle,
+    /// A disk of `diameter`, triangulated in rings (see [`scene::disk`](super::disk)).
+    Disk,
+}
+
+/// A cloth: particle `(i, j)` is index `j * nx + i`, `i` along `size[0]`; a disk's particles are
+/// numbered by ring (see [`scene::disk`](super::disk)).
 #[derive(Clone, Debug, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct ClothSpec {
     /// Name in results (default `cloth<index>`).
     pub name: Option<String>,
+    /// Outline (default `rectangle`).
+    pub shape: ClothShape,
+    /// A disk's diameter, in metres (default 1; a disk's only).
+    pub diameter: Option<f64>,
     /// Extent, in metres (default `[1, 1]`).
     pub size: [f64; 2],
     /// Particles along each side, each at least 2 (default `[32, 32]`).
@@ -308,6 +326,8 @@ impl Default for ClothSpec {
     fn default() -> Self {
         Self {
             name: None,
+            shape: ClothShape::Rectangle,
+            diameter: None,
             size: [1.0, 1.0],
             resolution: [32, 32],
             center: [0.0, 1.0, 0.0],

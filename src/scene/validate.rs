@@ -3,7 +3,8 @@
 
 use super::error::FieldError;
 use super::types::{
-    Body, ColliderSpec, Field, Format, FrameSelection, GridSprings, Output, Scene, SpringSpec, WindSpec,
+    Body, ClothShape, ColliderSpec, Field, Format, FrameSelection, GridSprings, Output, Scene, SpringSpec,
+    WindSpec,
 };
 
 /// Collects problems, each at its JSON Pointer.
@@ -232,13 +233,24 @@ fn body_problems(p: &mut Problems, at: &str, body: &Body) {
     let field = |name: &str| format!("{at}/{name}");
     match body {
         Body::Cloth(c) => {
-            p.lengths(&field("size"), &c.size);
             p.resolution(&field("resolution"), &c.resolution);
+            match c.shape {
+                ClothShape::Rectangle => {
+                    p.lengths(&field("size"), &c.size);
+                    p.pins(&field("pin"), &c.pin, c.resolution);
+                    if c.diameter.is_some() {
+                        p.add(field("diameter"), "only a cloth of shape disk has a diameter");
+                    }
+                }
+                ClothShape::Disk => {
+                    p.length(&field("diameter"), c.disk_diameter());
+                    p.0.extend(c.disk_problems(at));
+                }
+            }
             p.vector(&field("center"), &c.center);
             p.positive(&field("mass"), c.mass);
             p.vector(&field("velocity"), &c.velocity);
             p.grid_springs(&field("springs"), &c.springs);
-            p.pins(&field("pin"), &c.pin, c.resolution);
         }
         Body::Chain(c) => {
             p.vector(&field("start"), &c.start);
