@@ -188,7 +188,7 @@ pub fn read_glb(bytes: &[u8], limits: MeshLimits) -> Result<Mesh, GlbError> {
                 return fail(
                     GlbPlace::Accessor(position),
                     format!(
-                        "the file has more than {} vertices, the most this server takes",
+                        "the file has more than {} vertices, the most this server takes (--max-particles)",
                         limits.max_vertices
                     ),
                 );
@@ -197,7 +197,7 @@ pub fn read_glb(bytes: &[u8], limits: MeshLimits) -> Result<Mesh, GlbError> {
                 return fail(
                     GlbPlace::Accessor(primitive.indices.unwrap_or(position)),
                     format!(
-                        "the file has more than {} triangles, the most this server takes",
+                        "the file has more than {} triangles, the most this server takes (--max-asset-triangles)",
                         limits.max_triangles
                     ),
                 );

@@ -41,7 +41,7 @@ pub fn read_obj(bytes: &[u8], limits: MeshLimits) -> Result<Mesh, ObjError> {
             Some("v") => {
                 if (vertices.len() / 3) as u64 >= limits.max_vertices {
                     return Err(fail(format!(
-                        "more than {} vertices, the most this server takes",
+                        "more than {} vertices, the most this server takes (--max-particles)",
                         limits.max_vertices
                     )));
                 }
@@ -69,7 +69,7 @@ pub fn read_obj(bytes: &[u8], limits: MeshLimits) -> Result<Mesh, ObjError> {
                 let new_triangles = (corners.len() - 2) as u64;
                 if (triangles.len() / 3) as u64 + new_triangles > limits.max_triangles {
                     return Err(fail(format!(
-                        "more than {} triangles, the most this server takes",
+                        "more than {} triangles, the most this server takes (--max-asset-triangles)",
                         limits.max_triangles
                     )));
                 }

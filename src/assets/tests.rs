@@ -87,12 +87,18 @@ fn obj_files_over_the_limits_are_refused_at_the_line_that_passes_them() {
     let four_vertices = read_obj(b"v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\n", small).unwrap_err();
     assert_eq!(
         four_vertices,
-        ObjError { line: 4, reason: "more than 3 vertices, the most this server takes".into() }
+        ObjError {
+            line: 4,
+            reason: "more than 3 vertices, the most this server takes (--max-particles)".into()
+        }
     );
     let quad = read_obj(b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nf 3 2 1\n", small).unwrap_err();
     assert_eq!(
         quad,
-        ObjError { line: 5, reason: "more than 1 triangles, the most this server takes".into() }
+        ObjError {
+            line: 5,
+            reason: "more than 1 triangles, the most this server takes (--max-asset-triangles)".into()
+        }
     );
 }
 
@@ -205,7 +211,7 @@ fn bad_glb_files_name_their_accessor_or_chunk() {
     let one_triangle = MeshLimits { max_vertices: 2, max_triangles: 1 };
     assert_eq!(
         read_glb(&file, one_triangle).unwrap_err().to_string(),
-        "GLB accessor 0: the file has more than 2 vertices, the most this server takes"
+        "GLB accessor 0: the file has more than 2 vertices, the most this server takes (--max-particles)"
     );
 }
 
