@@ -91,3 +91,36 @@ fn drape_run_reads_a_file_relative_to_the_scene() {
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(stderr.contains("/bodies/0/file: cannot read"), "{stderr}");
 }
+
+#[test]
+fn drape_sweep_reads_a_file_of_its_base_scene() {
+    let directory = tempfile::tempdir().unwrap();
+    std::fs::write(directory.path().join("square.obj"), "v 0 1 0\nv 1 1 0\nv 1 1 1\nv 0 1 1\nf 1 2 3 4\n")
+        .unwrap();
+    let sweep = json!({
+        "scene": {"duration": 0.1, "bodies": [{"type": "mesh", "file": "square.obj"}], "output": {"frames": "none"}},
+        "vary": {"/dt": [0.01, 0.005]},
+    });
+    std::fs::write(directory.path().join("sweep.json"), sweep.to_string()).unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_drape"))
+        .args(["sweep", "--threads", "1"])
+        .arg(directory.path().join("sweep.json"))
+        .env_remove("DRAPE_MEMORY_BUDGET")
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let table: Value = serde_json::from_slice(&out.stdout).unwrap();
+    let statuses: Vec<&str> =
+        table["rows"].as_array().unwrap().iter().map(|r| r["status"].as_str().unwrap()).collect();
+    assert_eq!(statuses, ["succeeded", "succeeded"]);
+
+    let missing = json!({"scene": {"duration": 0.1, "bodies": [{"type": "mesh", "file": "no.glb"}]}, "vary": {"/dt": [0.01]}});
+    std::fs::write(directory.path().join("missing.json"), missing.to_string()).unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_drape"))
+        .arg("sweep")
+        .arg(directory.path().join("missing.json"))
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("/scene/bodies/0/file: cannot read"));
+}

@@ -303,7 +303,8 @@ fn chunks(bytes: &[u8]) -> Result<(&[u8], &[u8]), GlbError> {
 }
 
 /// Each node's transform in the scene: its own after its parents'. A node with two parents or
-/// a cycle of children is refused.
+/// a cycle of children is refused. Each transform is computed once, from its parent's, so a deep
+/// hierarchy costs no more than a flat one.
 fn world_transforms(nodes: &[Node]) -> Result<Vec<DMat4>, GlbError> {
     let mut parent: Vec<Option<usize>> = vec![None; nodes.len()];
     for (n, node) in nodes.iter().enumerate() {
@@ -317,22 +318,36 @@ fn world_transforms(nodes: &[Node]) -> Result<Vec<DMat4>, GlbError> {
     }
     let local: Vec<DMat4> =
         nodes.iter().enumerate().map(|(n, node)| local_transform(n, node)).collect::<Result<_, _>>()?;
-    let mut world = Vec::with_capacity(nodes.len());
-    for n in 0..nodes.len() {
-        let mut transform = local[n];
-        let mut at = n;
-        let mut steps = 0;
-        while let Some(p) = parent[at] {
-            steps += 1;
-            if steps > nodes.len() {
-                return fail(GlbPlace::Node(n), "the node is its own ancestor");
+    let mut world: Vec<Option<DMat4>> = vec![None; nodes.len()];
+    let mut on_path = vec![false; nodes.len()];
+    let mut path = Vec::new();
+    for start in 0..nodes.len() {
+        // Climb to the first ancestor already placed (or a root), then place the path down.
+        path.clear();
+        let mut at = start;
+        let mut base = DMat4::IDENTITY;
+        loop {
+            if let Some(placed) = world[at] {
+                base = placed;
+                break;
             }
-            transform = local[p] * transform;
-            at = p;
+            if on_path[at] {
+                return fail(GlbPlace::Node(start), "the node is its own ancestor");
+            }
+            on_path[at] = true;
+            path.push(at);
+            match parent[at] {
+                Some(p) => at = p,
+                None => break,
+            }
         }
-        world.push(transform);
+        for &node in path.iter().rev() {
+            base *= local[node];
+            world[node] = Some(base);
+            on_path[node] = false;
+        }
     }
-    Ok(world)
+    Ok(world.into_iter().map(|w| w.unwrap_or(DMat4::IDENTITY)).collect())
 }
 
 fn local_transform(n: usize, node: &Node) -> Result<DMat4, GlbError> {
