@@ -313,3 +313,33 @@ fn files_are_read_relative_to_the_scene_and_assets_are_refused_on_the_command_li
     assert_eq!(errors[1].pointer, "/bodies/1/asset");
     assert_eq!(errors[2].detail, "the file must end in .obj or .glb");
 }
+
+#[test]
+fn every_damaged_copy_of_a_glb_is_read_or_refused_without_a_panic() {
+    let (document, bin) = triangle_glb();
+    let file = glb(&document, &bin);
+    let mut read = 0;
+    for at in 12..file.len() {
+        for value in [0x00, 0x7f, 0xff] {
+            let mut damaged = file.clone();
+            damaged[at] = value;
+            // Ok or Err are both answers; a panic fails the test.
+            read += usize::from(read_glb(&damaged, LIMITS).is_ok());
+        }
+    }
+    // A flip inside the positions leaves a readable triangle, so some copies are read.
+    assert!(read > 0);
+    for end in 0..file.len() {
+        assert!(read_glb(&file[..end], LIMITS).is_err(), "a GLB cut at {end} bytes");
+    }
+}
+
+#[test]
+fn every_prefix_of_an_obj_is_read_or_refused_without_a_panic() {
+    for end in 0..CUBE_OBJ.len() {
+        let prefix = &CUBE_OBJ.as_bytes()[..end];
+        if let Ok(mesh) = read_obj(prefix, LIMITS) {
+            assert!(mesh.triangles.iter().all(|&i| (i as usize) < mesh.vertex_count()));
+        }
+    }
+}
