@@ -7,8 +7,9 @@ use std::time::Duration;
 use clap::Args;
 
 use crate::api::{AllowedHosts, ApiConfig, AuthToken};
+use crate::assets::MeshLimits;
 use crate::jobs::store::{MemoryStore, StoreUrl};
-use crate::jobs::{JobsConfig, Limits};
+use crate::jobs::{AssetLimits, JobsConfig, Limits};
 
 /// How the server runs and what it accepts.
 #[derive(Args, Clone, Debug)]
@@ -83,6 +84,16 @@ pub struct Config {
     #[arg(long, env = "DRAPE_MAX_ATTEMPTS", default_value_t = JobsConfig::default().max_attempts,
           value_parser = clap::value_parser!(u32).range(1..))]
     pub max_attempts: u32,
+    /// Largest mesh file POST /assets takes, in bytes (suffixes K, M, G: powers of 1024); an
+    /// upload is also held to --body-limit.
+    #[arg(long, env = "DRAPE_MAX_ASSET_BYTES", default_value = "4M", value_parser = byte_size)]
+    pub max_asset_bytes: u64,
+    /// Uploaded meshes the store may hold (POST /assets answers 413 above).
+    #[arg(long, env = "DRAPE_MAX_ASSETS", default_value_t = AssetLimits::default().max_assets)]
+    pub max_assets: u64,
+    /// Bytes of uploaded mesh files the store may hold over all assets (suffixes K, M, G).
+    #[arg(long, env = "DRAPE_MAX_ASSET_STORAGE", default_value = "1G", value_parser = byte_size)]
+    pub max_asset_storage: u64,
     /// Seconds running jobs get to finish on SIGINT or SIGTERM before they are cancelled.
     #[arg(long, env = "DRAPE_SHUTDOWN_GRACE", default_value = "30", value_parser = seconds)]
     pub shutdown_grace: Duration,
@@ -106,6 +117,12 @@ impl Config {
             result_ttl: self.result_ttl,
             idle_poll: JobsConfig::default().idle_poll,
             max_attempts: self.max_attempts,
+            assets: AssetLimits {
+                mesh: self.limits.mesh_limits(),
+                max_bytes: self.max_asset_bytes,
+                max_assets: self.max_assets,
+                max_total_bytes: self.max_asset_storage,
+            },
         }
     }
 
@@ -155,6 +172,10 @@ pub struct LimitArgs {
     /// rest of the process [default: half the machine's memory].
     #[arg(long, env = "DRAPE_MEMORY_BUDGET", value_parser = byte_size)]
     pub memory_budget: Option<u64>,
+    /// Most triangles in one mesh file (an uploaded asset or a `file` a scene names), after its
+    /// polygons are split; its vertices are held to --max-particles.
+    #[arg(long, env = "DRAPE_MAX_ASSET_TRIANGLES", default_value_t = AssetLimits::default().mesh.max_triangles)]
+    pub max_asset_triangles: u64,
 }
 
 impl Default for LimitArgs {
@@ -167,6 +188,7 @@ impl Default for LimitArgs {
             max_output_values: limits.max_output_values,
             max_work: limits.max_work,
             memory_budget: None,
+            max_asset_triangles: AssetLimits::default().mesh.max_triangles,
         }
     }
 }
@@ -179,6 +201,11 @@ impl LimitArgs {
     /// The budget, given or half the machine's memory (8 GiB when that cannot be read).
     pub fn memory_budget(&self) -> u64 {
         self.memory_budget.unwrap_or_else(|| machine_memory().map_or(8 << 30, |total| total / 2))
+    }
+
+    /// The largest mesh a file may hold.
+    pub fn mesh_limits(&self) -> MeshLimits {
+        MeshLimits { max_vertices: self.max_particles, max_triangles: self.max_asset_triangles }
     }
 
     /// The limits of each of `runs_at_once` runs sharing the memory budget.

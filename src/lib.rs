@@ -20,6 +20,7 @@
 //! [`run::Recording`] → [`output`].
 
 pub mod api;
+pub mod assets;
 pub mod config;
 pub mod jobs;
 pub mod output;

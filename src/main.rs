@@ -7,6 +7,7 @@ use std::sync::atomic::AtomicUsize;
 
 use clap::{Parser, Subcommand};
 
+use drape::assets::{has_references, resolve_files};
 use drape::config::LimitArgs;
 use drape::jobs::{admit_for_table, sweep_over_limit};
 use drape::output::{Format, encode};
@@ -143,6 +144,40 @@ fn read_input(path: &Path) -> Result<Vec<u8>, ExitCode> {
     })
 }
 
+/// The scene (or a sweep's base scene, under `member`) of `text` read from `path`, with every
+/// mesh `file` it names read, relative to the file's directory (the working directory for
+/// standard input), and put in place. Text that is not JSON is left for the parse to report.
+fn with_mesh_files(
+    text: Vec<u8>,
+    path: &Path,
+    member: Option<&str>,
+    limits: &LimitArgs,
+) -> Result<Vec<u8>, ExitCode> {
+    let Ok(mut document) = serde_json::from_slice::<serde_json::Value>(&text) else { return Ok(text) };
+    let prefix = member.map_or(String::new(), |m| format!("/{m}"));
+    let Some(scene) = (match member {
+        Some(m) => document.get_mut(m),
+        None => Some(&mut document),
+    }) else {
+        return Ok(text);
+    };
+    if !has_references(scene) {
+        return Ok(text);
+    }
+    let directory = match path.parent() {
+        Some(parent) if path.as_os_str() != "-" && !parent.as_os_str().is_empty() => parent,
+        _ => Path::new("."),
+    };
+    match resolve_files(scene, &prefix, directory, limits.mesh_limits()) {
+        Ok(()) => Ok(serde_json::to_vec(&document).expect("a JSON value serializes")),
+        Err(errors) => {
+            eprintln!("drape: {} names meshes that cannot be read:", path.display());
+            errors.iter().for_each(|fe| eprintln!("  {fe}"));
+            Err(ExitCode::from(2))
+        }
+    }
+}
+
 /// How `drape sweep` runs and prints.
 struct SweepOptions<'a> {
     csv: bool,
@@ -155,7 +190,7 @@ struct SweepOptions<'a> {
 
 fn run_sweep(path: &Path, options: SweepOptions<'_>, limits: &LimitArgs) -> ExitCode {
     let SweepOptions { csv, plot, threads, max_variants, progress, thresholds } = options;
-    let text = match read_input(path) {
+    let text = match read_input(path).and_then(|text| with_mesh_files(text, path, Some("scene"), limits)) {
         Ok(text) => text,
         Err(code) => return code,
     };
@@ -228,7 +263,7 @@ fn run(
     show_progress: bool,
     limits: &LimitArgs,
 ) -> ExitCode {
-    let text = match read_input(path) {
+    let text = match read_input(path).and_then(|text| with_mesh_files(text, path, None, limits)) {
         Ok(text) => text,
         Err(code) => return code,
     };

@@ -69,6 +69,19 @@ async fn with_tokens_set_every_endpoint_but_healthz_needs_one() {
         .unwrap();
     assert_eq!(send(&app, submit).await.status, 202);
 
+    // Uploads are held to the same tokens.
+    let triangle = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+    let upload = |token: Option<&str>| {
+        let mut request = Request::post("/assets").header("content-type", "model/obj");
+        if let Some(token) = token {
+            request = request.header("authorization", token);
+        }
+        request.body(Body::from(triangle)).unwrap()
+    };
+    assert_eq!(send(&app, upload(None)).await.status, 401);
+    assert_eq!(send(&app, get_with("/assets", &[])).await.status, 401);
+    assert_eq!(send(&app, upload(Some(&bearer))).await.status, 201);
+
     let health = send(&app, get_with("/healthz", &[])).await;
     assert_eq!(health.status, 200);
     assert_eq!(health.json(), serde_json::json!({"status": "ok"}));

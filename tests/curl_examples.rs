@@ -117,6 +117,21 @@ fn every_curl_script_works_against_drape_serve() {
     let cancelled = json(&script(&base, "cancel_sweep.sh", &[sweep_id]));
     assert_eq!(cancelled["complete"], true);
 
+    // A square of two triangles, uploaded, named by a scene's mesh, listed and deleted.
+    let mesh = dir.join("square.obj");
+    std::fs::write(&mesh, "v 0 1 0\nv 1 1 0\nv 1 1 1\nv 0 1 1\nf 1 2 3 4\n").unwrap();
+    let asset = json(&script(&base, "upload_asset.sh", &[mesh.to_str().unwrap()]));
+    assert_eq!((asset["vertices"].as_u64(), asset["triangles"].as_u64()), (Some(4), Some(2)));
+    let id = asset["id"].as_str().unwrap();
+    let mesh_scene = dir.join("mesh_scene.json");
+    let body = serde_json::json!({"duration": 0.1, "bodies": [{"type": "mesh", "asset": id}], "output": {"frames": "final"}});
+    std::fs::write(&mesh_scene, body.to_string()).unwrap();
+    let result = json(&script(&base, "simulate.sh", &[mesh_scene.to_str().unwrap()]));
+    assert_eq!(result["mesh"]["particles"], 4);
+    assert_eq!(json(&script(&base, "list_assets.sh", &[]))["assets"][0]["id"], id);
+    script(&base, "delete_asset.sh", &[id]);
+    assert_eq!(json(&script(&base, "list_assets.sh", &[]))["assets"], serde_json::json!([]));
+
     server.terminate();
     std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -9,8 +9,8 @@ use std::time::Duration;
 
 use async_trait::async_trait;
 use drape::jobs::{
-    CancelRequest, Claim, Inserted, JobId, JobRecord, JobStatus, JobStore, Jobs, JobsConfig, Lease,
-    MemoryStore, Outcome, Page, Renewed, StoreError, StoredResult, Submission,
+    AssetRecord, AssetRoom, CancelRequest, Claim, Inserted, JobId, JobRecord, JobStatus, JobStore, Jobs,
+    JobsConfig, Lease, MemoryStore, Outcome, Page, PutAsset, Renewed, StoreError, StoredResult, Submission,
 };
 use drape::scene::{Compiled, Scene};
 use serde_json::json;
@@ -127,6 +127,26 @@ impl JobStore for Faulty {
     }
     async fn result(&self, id: &JobId) -> Result<Option<StoredResult>, StoreError> {
         self.inner.result(id).await
+    }
+    async fn put_asset(
+        &self,
+        asset: &AssetRecord,
+        mesh: &[u8],
+        room: AssetRoom,
+    ) -> Result<PutAsset, StoreError> {
+        self.inner.put_asset(asset, mesh, room).await
+    }
+    async fn asset(&self, id: &str) -> Result<Option<AssetRecord>, StoreError> {
+        self.inner.asset(id).await
+    }
+    async fn asset_mesh(&self, id: &str) -> Result<Option<Vec<u8>>, StoreError> {
+        self.inner.asset_mesh(id).await
+    }
+    async fn list_assets(&self) -> Result<Vec<AssetRecord>, StoreError> {
+        self.inner.list_assets().await
+    }
+    async fn delete_asset(&self, id: &str) -> Result<bool, StoreError> {
+        self.inner.delete_asset(id).await
     }
 }
 

@@ -12,9 +12,9 @@ use std::time::Duration;
 
 use bytes::Bytes;
 use drape::jobs::{
-    CancelRequest, Claim, Claimed, Failure, Idempotency, Inserted, JobId, JobRecord, JobStatus, JobStore,
-    Jobs, JobsConfig, Lease, MemoryStore, Outcome, Page, Plan, PostgresStore, Renewed, SqliteStore,
-    StoredResult, Submission,
+    AssetRecord, AssetRoom, CancelRequest, Claim, Claimed, Failure, Idempotency, Inserted, JobId, JobRecord,
+    JobStatus, JobStore, Jobs, JobsConfig, Lease, MemoryStore, Outcome, Page, Plan, PostgresStore, PutAsset,
+    Renewed, SqliteStore, StoredResult, Submission,
 };
 use drape::scene::Scene;
 use serde_json::json;
@@ -415,6 +415,54 @@ async fn a_queued_job_wakes_an_idle_worker(store: Arc<dyn JobStore>) {
     jobs.shutdown(Duration::ZERO).await;
 }
 
+fn asset(tag: u8, bytes: u64) -> AssetRecord {
+    AssetRecord {
+        id: format!("sha256:{}", format!("{tag:02x}").repeat(32)),
+        vertices: 3 + u64::from(tag),
+        triangles: 1 + u64::from(tag),
+        bytes,
+        created_ms: T0 + u64::from(tag),
+    }
+}
+
+const ROOMY: AssetRoom = AssetRoom { max_assets: 100, max_bytes: 1 << 20 };
+
+async fn assets_are_stored_once_listed_newest_first_and_deleted(store: Arc<dyn JobStore>) {
+    let (a, b) = (asset(1, 10), asset(2, 20));
+    let mesh_a: Vec<u8> = (0..=255).collect();
+    assert_eq!(store.put_asset(&a, &mesh_a, ROOMY).await.unwrap(), PutAsset::Added);
+    // The same id again keeps the first upload, its time included.
+    let again = AssetRecord { created_ms: T0 + 99, ..a.clone() };
+    assert_eq!(store.put_asset(&again, b"other", ROOMY).await.unwrap(), PutAsset::Exists(a.clone()));
+    assert_eq!(store.put_asset(&b, b"b", ROOMY).await.unwrap(), PutAsset::Added);
+    assert_eq!(store.asset(&a.id).await.unwrap(), Some(a.clone()));
+    assert_eq!(store.asset_mesh(&a.id).await.unwrap(), Some(mesh_a));
+    assert_eq!(store.list_assets().await.unwrap(), vec![b.clone(), a.clone()]);
+    assert!(store.delete_asset(&a.id).await.unwrap());
+    assert!(!store.delete_asset(&a.id).await.unwrap());
+    assert_eq!(store.asset(&a.id).await.unwrap(), None);
+    assert_eq!(store.asset_mesh(&a.id).await.unwrap(), None);
+    assert_eq!(store.list_assets().await.unwrap(), vec![b]);
+}
+
+async fn assets_never_pass_their_room(store: Arc<dyn JobStore>) {
+    let room = AssetRoom { max_assets: 2, max_bytes: 100 };
+    assert_eq!(store.put_asset(&asset(1, 60), b"1", room).await.unwrap(), PutAsset::Added);
+    assert_eq!(
+        store.put_asset(&asset(2, 41), b"2", room).await.unwrap(),
+        PutAsset::Full { assets: 1, bytes: 60 }
+    );
+    assert_eq!(store.put_asset(&asset(3, 40), b"3", room).await.unwrap(), PutAsset::Added);
+    assert_eq!(
+        store.put_asset(&asset(4, 0), b"4", room).await.unwrap(),
+        PutAsset::Full { assets: 2, bytes: 100 }
+    );
+    // One already stored is found, not refused, when the store is full.
+    assert_eq!(store.put_asset(&asset(3, 40), b"3", room).await.unwrap(), PutAsset::Exists(asset(3, 40)));
+    assert!(store.delete_asset(&asset(1, 60).id).await.unwrap());
+    assert_eq!(store.put_asset(&asset(2, 41), b"2", room).await.unwrap(), PutAsset::Added);
+}
+
 /// A module named for the backend with one test per suite function, each carrying the
 /// attributes in brackets (for PostgreSQL, an `ignore` with what it needs).
 macro_rules! suite {
@@ -454,6 +502,8 @@ every_backend!(
     shutdown_cancels_only_queued_jobs,
     racing_claimers_never_share_a_job,
     a_queued_job_wakes_an_idle_worker,
+    assets_are_stored_once_listed_newest_first_and_deleted,
+    assets_never_pass_their_room,
 );
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

@@ -9,7 +9,9 @@ use axum::http::request::Parts;
 use axum::http::{StatusCode, header};
 use serde_json::Value;
 
+use super::AppState;
 use super::problem::AppError;
+use crate::assets::has_references;
 use crate::jobs::{JobId, fingerprint};
 use crate::output::Format;
 use crate::output::carried;
@@ -134,12 +136,18 @@ pub fn cannot_carry_selected(format: Format, field: Field) -> FieldError {
     )
 }
 
-impl<S: Send + Sync> FromRequest<S> for SceneBody {
+impl FromRequest<AppState> for SceneBody {
     type Rejection = AppError;
 
-    async fn from_request(request: Request, state: &S) -> Result<Self, AppError> {
-        let JsonBody(document) = JsonBody::from_request(request, state).await?;
+    /// Reads the scene with the meshes its `"asset"` references name put in their place; the
+    /// fingerprint is of the document as sent (an asset id is the hash of its bytes), the
+    /// stored document the one resolved.
+    async fn from_request(request: Request, state: &AppState) -> Result<Self, AppError> {
+        let JsonBody(mut document) = JsonBody::from_request(request, state).await?;
         let fingerprint = fingerprint(&document);
+        if has_references(&document) {
+            state.jobs.resolve_assets(&mut document, "").await?;
+        }
         let scene = Scene::from_value(document.clone())?;
         Ok(Self { scene, fingerprint, document })
     }

@@ -6,6 +6,7 @@
 //! layers (`layers.rs`) or checks before work starts.
 
 mod access;
+mod assets;
 mod events;
 mod extract;
 mod jobs;
@@ -128,6 +129,10 @@ pub fn routes() -> Vec<Route> {
         route(Method::GET, "/sweeps/{id}", sweeps::get),
         route(Method::DELETE, "/sweeps/{id}", sweeps::cancel),
         route(Method::GET, "/sweeps/{id}/plot.svg", sweeps::plot),
+        route(Method::POST, "/assets", assets::upload),
+        route(Method::GET, "/assets", assets::list),
+        route(Method::GET, "/assets/{id}", assets::get),
+        route(Method::DELETE, "/assets/{id}", assets::delete),
         route(Method::GET, "/healthz", healthz),
         route(Method::GET, "/metrics", metrics::metrics),
         route(Method::GET, "/openapi.json", openapi::openapi),

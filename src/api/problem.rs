@@ -10,7 +10,10 @@ use axum::response::{IntoResponse, Response};
 use serde_json::json;
 
 use super::access::Refusal;
-use crate::jobs::{JobId, JobStatus, StoreError, SubmitError, SweepDocumentError, SweepSubmitError};
+use crate::assets::ReadError;
+use crate::jobs::{
+    AssetError, JobId, JobStatus, ResolveError, StoreError, SubmitError, SweepDocumentError, SweepSubmitError,
+};
 use crate::scene::{FieldError, SceneError};
 
 /// The media type of a problem body.
@@ -178,6 +181,25 @@ pub enum AppError {
         /// What happened.
         message: String,
     },
+    /// 404: no asset has this id.
+    AssetNotFound {
+        /// The id asked for.
+        id: String,
+    },
+    /// 413: the mesh file is larger than an upload may be, or the store holds as many assets
+    /// as it may; the detail names the limit.
+    AssetOverLimit {
+        /// Which limit, and by how much.
+        detail: String,
+    },
+    /// 415: the body of `POST /assets` is not of a mesh media type.
+    NotAMeshType {
+        /// The `Content-Type` sent, if any.
+        found: Option<String>,
+    },
+    /// 422: the uploaded file is not a mesh this server reads; the reason names the OBJ line or
+    /// the GLB accessor (or chunk).
+    InvalidMesh(ReadError),
     /// 500: something broke on the server; the cause is logged, not sent.
     Internal(String),
 }
@@ -192,18 +214,24 @@ impl AppError {
             Self::UnsupportedEncoding { .. } => StatusCode::UNSUPPORTED_MEDIA_TYPE,
             Self::HostNotAllowed { .. } => StatusCode::MISDIRECTED_REQUEST,
             Self::HeadersTooLarge { .. } => StatusCode::REQUEST_HEADER_FIELDS_TOO_LARGE,
-            Self::NoRoute { .. } | Self::JobNotFound { .. } | Self::SweepNotFound { .. } => {
-                StatusCode::NOT_FOUND
-            }
+            Self::NoRoute { .. }
+            | Self::JobNotFound { .. }
+            | Self::SweepNotFound { .. }
+            | Self::AssetNotFound { .. } => StatusCode::NOT_FOUND,
             Self::MethodNotAllowed { .. } => StatusCode::METHOD_NOT_ALLOWED,
             Self::NotAcceptable { .. } => StatusCode::NOT_ACCEPTABLE,
             Self::Timeout => StatusCode::REQUEST_TIMEOUT,
             Self::NoResult { .. } | Self::AlreadyEnded { .. } | Self::JobCancelled { .. } => {
                 StatusCode::CONFLICT
             }
-            Self::BodyTooLarge | Self::OverBudget { .. } => StatusCode::PAYLOAD_TOO_LARGE,
-            Self::UnsupportedMediaType { .. } => StatusCode::UNSUPPORTED_MEDIA_TYPE,
-            Self::InvalidScene(_)
+            Self::BodyTooLarge | Self::OverBudget { .. } | Self::AssetOverLimit { .. } => {
+                StatusCode::PAYLOAD_TOO_LARGE
+            }
+            Self::UnsupportedMediaType { .. } | Self::NotAMeshType { .. } => {
+                StatusCode::UNSUPPORTED_MEDIA_TYPE
+            }
+            Self::InvalidMesh(_)
+            | Self::InvalidScene(_)
             | Self::CannotCarry { .. }
             | Self::NotRecorded(_)
             | Self::InvalidSweep(_)
@@ -362,6 +390,21 @@ impl AppError {
             Self::JobFailed { id, message } => {
                 ("job-failed", "The job failed", format!("job {id} failed: {message}"))
             }
+            Self::AssetNotFound { id } => {
+                ("asset-not-found", "No such asset", format!("there is no asset with id `{id}`"))
+            }
+            Self::AssetOverLimit { detail } => {
+                ("asset-over-limit", "The asset exceeds this server's limits", detail.clone())
+            }
+            Self::NotAMeshType { found } => (
+                "unsupported-media-type",
+                "The body must be a mesh file",
+                format!(
+                    "Content-Type is {}; send an OBJ as `model/obj` (or `text/plain`) or a GLB as `model/gltf-binary`",
+                    found.as_deref().map_or("missing".into(), |t| format!("`{t}`"))
+                ),
+            ),
+            Self::InvalidMesh(e) => ("invalid-mesh", "The file is not a mesh this server reads", e.to_string()),
             Self::Internal(_) => {
                 ("internal", "Internal server error", "the server failed; the cause is logged".into())
             }
@@ -422,6 +465,11 @@ impl IntoResponse for AppError {
             // The whole document is at fault.
             body["errors"] = json!([{"pointer": "", "detail": detail}]);
         }
+        match &self {
+            Self::InvalidMesh(ReadError::Obj(e)) => body["line"] = e.line.into(),
+            Self::InvalidMesh(ReadError::Glb(e)) => body["at"] = e.place.to_string().into(),
+            _ => {}
+        }
         let mut response = (status, [(header::CONTENT_TYPE, PROBLEM_JSON)], body.to_string()).into_response();
         match self {
             Self::QueueFull { retry_after } => {
@@ -475,6 +523,27 @@ impl From<SubmitError> for AppError {
             SubmitError::QueueFull => Self::QueueFull { retry_after: 1 },
             SubmitError::ShuttingDown => Self::ShuttingDown,
             SubmitError::Store(e) => e.into(),
+        }
+    }
+}
+
+impl From<AssetError> for AppError {
+    fn from(e: AssetError) -> Self {
+        match e {
+            e @ (AssetError::TooLarge { .. } | AssetError::StoreFull(_)) => {
+                Self::AssetOverLimit { detail: e.to_string() }
+            }
+            AssetError::Unreadable(e) => Self::InvalidMesh(e),
+            AssetError::Store(e) => e.into(),
+        }
+    }
+}
+
+impl From<ResolveError> for AppError {
+    fn from(e: ResolveError) -> Self {
+        match e {
+            ResolveError::Invalid(errors) => Self::InvalidScene(errors),
+            ResolveError::Store(e) => e.into(),
         }
     }
 }

@@ -10,15 +10,20 @@ use super::AppState;
 use super::extract::{JsonBody, SweepPath};
 use super::problem::AppError;
 use super::views::rfc3339;
+use crate::assets::has_references;
 use crate::jobs::{SweepRecord, SweepState};
 use crate::scene::FieldError;
 
-/// `POST /sweeps`: checks the sweep (pointers, values, variant count, every run's limits) and
+/// `POST /sweeps`: puts the meshes its base scene names by `"asset"` in place, checks the sweep (pointers, values, variant count, every run's limits) and
 /// queues its reference and every variant as jobs; `202` with the sweep and its `Location`.
 pub async fn submit(
     State(state): State<AppState>,
-    JsonBody(document): JsonBody,
+    JsonBody(mut document): JsonBody,
 ) -> Result<Response, AppError> {
+    // The base scene's `"asset"` references are resolved once, so every variant holds the mesh.
+    if let Some(scene) = document.get_mut("scene").filter(|scene| has_references(scene)) {
+        state.jobs.resolve_assets(scene, "/scene").await?;
+    }
     let record = state.sweeps.submit(&state.jobs, document, state.config.max_sweep_variants).await?;
     let sweep = state.sweeps.state(&state.jobs, &record).await?;
     let mut response = (StatusCode::ACCEPTED, Json(sweep_view(&record, &sweep))).into_response();

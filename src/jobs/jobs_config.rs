@@ -4,6 +4,7 @@
 use std::sync::Arc;
 use std::time::Duration;
 
+use super::assets::AssetLimits;
 use super::limits::Limits;
 use crate::scene::Compiled;
 
@@ -36,6 +37,8 @@ pub struct JobsConfig {
     /// Starts a job may have without ending (each crashed or lost its instance) before it is
     /// failed rather than started again.
     pub max_attempts: u32,
+    /// How large uploaded meshes may be, and how many the store may hold.
+    pub assets: AssetLimits,
 }
 
 impl Default for JobsConfig {
@@ -50,6 +53,7 @@ impl Default for JobsConfig {
             result_ttl: Duration::from_secs(24 * 3600),
             idle_poll: Duration::from_millis(200),
             max_attempts: 3,
+            assets: AssetLimits::default(),
         }
     }
 }

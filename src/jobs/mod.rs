@@ -11,8 +11,11 @@
 //! [`PostgresStore`] (several instances, one queue); [`StoreUrl`] picks one. The HTTP API talks
 //! to this module, never to the solver.
 //! [`Sweeps`] queues every run of a sweep as a job and assembles its table from their results.
+//! [`Jobs::upload_asset`] keeps uploaded meshes in the store, and [`Jobs::resolve_assets`] puts
+//! them in place of a scene's `"asset"` references at admission.
 //! [`check_untrusted`] takes a scene's bytes through all of admission and compilation at once.
 
+mod assets;
 mod cost;
 mod doorbell;
 mod encode;
@@ -31,6 +34,7 @@ pub mod store;
 mod sweeps;
 mod untrusted;
 
+pub use assets::{AssetError, AssetLimits, ResolveError, Uploaded};
 pub use cost::{Cost, IMPLICIT_PASSES, StageCost};
 pub use encode::{EncodingCancelled, TranscodeError, Transcoded, encode_result, transcode};
 pub use fingerprint::fingerprint;
@@ -42,8 +46,9 @@ pub use record::{Idempotency, JobRecord, Plan, now_ms};
 pub use service::{Cancelled, Ended, Jobs, Submission, SubmitError, Submitted};
 pub use status::{Failure, JobStatus};
 pub use store::{
-    CancelRequest, Claim, Claimed, Inserted, JobStore, Lease, MemoryStore, Outcome, Page, PostgresStore,
-    Renewed, SqliteStore, StoreError, StoreUrl, StoredResult, attempts_exhausted,
+    AssetRecord, AssetRoom, CancelRequest, Claim, Claimed, Inserted, JobStore, Lease, MemoryStore, Outcome,
+    Page, PostgresStore, PutAsset, Renewed, SqliteStore, StoreError, StoreUrl, StoredResult,
+    attempts_exhausted,
 };
 pub use sweeps::{
     SweepDocumentError, SweepRecord, SweepState, SweepSubmitError, Sweeps, admit_for_table, sweep_over_limit,

@@ -117,7 +117,7 @@ const REMOTE_POLL: Duration = Duration::from_millis(100);
 /// The job system: workers over a store. Cheap to clone.
 #[derive(Clone)]
 pub struct Jobs {
-    shared: Arc<Shared>,
+    pub(super) shared: Arc<Shared>,
 }
 
 impl Jobs {

@@ -10,8 +10,8 @@ use std::sync::Mutex;
 use async_trait::async_trait;
 
 use super::{
-    CancelRequest, Claim, Claimed, Inserted, JobStore, Lease, Outcome, Page, Renewed, StoreError,
-    StoredResult, attempts_exhausted,
+    AssetRecord, AssetRoom, CancelRequest, Claim, Claimed, Inserted, JobStore, Lease, Outcome, Page,
+    PutAsset, Renewed, StoreError, StoredResult, attempts_exhausted,
 };
 use crate::jobs::id::JobId;
 use crate::jobs::record::JobRecord;
@@ -33,6 +33,8 @@ struct State {
     order: BTreeMap<u64, JobId>,
     keys: HashMap<String, JobId>,
     next: u64,
+    /// Uploaded meshes with their compact form, in upload order.
+    assets: Vec<(AssetRecord, Vec<u8>)>,
 }
 
 struct Entry {
@@ -327,6 +329,46 @@ impl JobStore for MemoryStore {
 
     async fn result(&self, id: &JobId) -> Result<Option<StoredResult>, StoreError> {
         Ok(self.with(|s| s.jobs.get(id).and_then(|e| e.result.clone())))
+    }
+
+    async fn put_asset(
+        &self,
+        asset: &AssetRecord,
+        mesh: &[u8],
+        room: AssetRoom,
+    ) -> Result<PutAsset, StoreError> {
+        Ok(self.with(|s| {
+            if let Some((existing, _)) = s.assets.iter().find(|(a, _)| a.id == asset.id) {
+                return PutAsset::Exists(existing.clone());
+            }
+            let assets = s.assets.len() as u64;
+            let bytes = s.assets.iter().map(|(a, _)| a.bytes).sum::<u64>();
+            if assets >= room.max_assets || bytes.saturating_add(asset.bytes) > room.max_bytes {
+                return PutAsset::Full { assets, bytes };
+            }
+            s.assets.push((asset.clone(), mesh.to_vec()));
+            PutAsset::Added
+        }))
+    }
+
+    async fn asset(&self, id: &str) -> Result<Option<AssetRecord>, StoreError> {
+        Ok(self.with(|s| s.assets.iter().find(|(a, _)| a.id == id).map(|(a, _)| a.clone())))
+    }
+
+    async fn asset_mesh(&self, id: &str) -> Result<Option<Vec<u8>>, StoreError> {
+        Ok(self.with(|s| s.assets.iter().find(|(a, _)| a.id == id).map(|(_, mesh)| mesh.clone())))
+    }
+
+    async fn list_assets(&self) -> Result<Vec<AssetRecord>, StoreError> {
+        Ok(self.with(|s| s.assets.iter().rev().map(|(a, _)| a.clone()).collect()))
+    }
+
+    async fn delete_asset(&self, id: &str) -> Result<bool, StoreError> {
+        Ok(self.with(|s| {
+            let before = s.assets.len();
+            s.assets.retain(|(a, _)| a.id != id);
+            s.assets.len() < before
+        }))
     }
 }
 

@@ -143,6 +143,46 @@ pub enum CancelRequest {
     AlreadyEnded(JobRecord),
 }
 
+/// An uploaded mesh as the store lists it (its mesh is read with [`JobStore::asset_mesh`]).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct AssetRecord {
+    /// `sha256:` and the hex SHA-256 of the uploaded bytes.
+    pub id: String,
+    /// Vertices of the mesh.
+    pub vertices: u64,
+    /// Triangles of the mesh.
+    pub triangles: u64,
+    /// Size of the uploaded file.
+    pub bytes: u64,
+    /// When it was first uploaded, in milliseconds since the Unix epoch.
+    pub created_ms: u64,
+}
+
+/// Room the assets may take in the store: [`JobStore::put_asset`] adds none past it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct AssetRoom {
+    /// Assets at most.
+    pub max_assets: u64,
+    /// Uploaded bytes of all assets together at most.
+    pub max_bytes: u64,
+}
+
+/// What [`JobStore::put_asset`] did.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum PutAsset {
+    /// The asset was added.
+    Added,
+    /// An asset with its id (the same bytes) was already stored; this is it.
+    Exists(AssetRecord),
+    /// Adding it would pass the [`AssetRoom`]; the store holds this many assets and bytes.
+    Full {
+        /// Assets stored.
+        assets: u64,
+        /// Their uploaded bytes.
+        bytes: u64,
+    },
+}
+
 /// A store that could not do what was asked.
 #[derive(Debug, Error)]
 pub enum StoreError {
@@ -218,4 +258,25 @@ pub trait JobStore: Send + Sync + 'static {
 
     /// The result of an ended job.
     async fn result(&self, id: &JobId) -> Result<Option<StoredResult>, StoreError>;
+
+    /// Adds an uploaded mesh with its compact form, unless one with its id is stored or it
+    /// would pass `room`; the check and the insertion are one statement.
+    async fn put_asset(
+        &self,
+        asset: &AssetRecord,
+        mesh: &[u8],
+        room: AssetRoom,
+    ) -> Result<PutAsset, StoreError>;
+
+    /// The asset with this id.
+    async fn asset(&self, id: &str) -> Result<Option<AssetRecord>, StoreError>;
+
+    /// The compact form of the asset with this id.
+    async fn asset_mesh(&self, id: &str) -> Result<Option<Vec<u8>>, StoreError>;
+
+    /// Every asset, newest first.
+    async fn list_assets(&self) -> Result<Vec<AssetRecord>, StoreError>;
+
+    /// Deletes an asset; returns whether there was one.
+    async fn delete_asset(&self, id: &str) -> Result<bool, StoreError>;
 }

@@ -31,6 +31,31 @@ use crate::jobs::status::{Failure, JobStatus};
 pub(super) const COLUMNS: &str = "id, status, created_ms, started_ms, finished_ms, particles, springs, steps, \
      companion_steps, dt, duration, steps_done, message, failure, stats, idem_key, idem_fingerprint, attempts";
 
+/// The columns of an asset as [`AssetRow`] reads them.
+const ASSET_COLUMNS: &str = "id, vertices, triangles, bytes, created_ms";
+
+/// An asset as a row of `assets`.
+#[derive(sqlx::FromRow)]
+pub(super) struct AssetRow {
+    id: String,
+    vertices: i64,
+    triangles: i64,
+    bytes: i64,
+    created_ms: i64,
+}
+
+impl AssetRow {
+    pub(super) fn into_record(self) -> super::AssetRecord {
+        super::AssetRecord {
+            id: self.id,
+            vertices: self.vertices as u64,
+            triangles: self.triangles as u64,
+            bytes: self.bytes as u64,
+            created_ms: self.created_ms as u64,
+        }
+    }
+}
+
 /// The statements of a backend, with its placeholders.
 pub(super) struct Statements {
     pub insert: String,
@@ -50,6 +75,12 @@ pub(super) struct Statements {
     pub cancel_queued: String,
     pub drop_results: String,
     pub result: String,
+    pub put_asset: String,
+    pub asset_usage: String,
+    pub asset: String,
+    pub asset_mesh: String,
+    pub list_assets: String,
+    pub delete_asset: String,
 }
 
 /// Which backend the statements are for.
@@ -127,6 +158,20 @@ impl Statements {
             )),
             drop_results: placeholders("DELETE FROM results WHERE finished_ms < $1".into()),
             result: placeholders("SELECT media_type, body FROM results WHERE job_id = $1".into()),
+            // SQLite reads `ON CONFLICT` after `INSERT ... SELECT` only when the SELECT has a WHERE.
+            put_asset: placeholders(
+                "INSERT INTO assets (id, vertices, triangles, bytes, created_ms, mesh) \
+                 SELECT $1, $2, $3, $4, $5, $6 \
+                 WHERE (SELECT COUNT(*) FROM assets) < $7 \
+                 AND (SELECT COALESCE(SUM(bytes), 0) FROM assets) + $4 <= $8 \
+                 ON CONFLICT (id) DO NOTHING"
+                    .into(),
+            ),
+            asset_usage: "SELECT COUNT(*), CAST(COALESCE(SUM(bytes), 0) AS BIGINT) FROM assets".into(),
+            asset: placeholders(format!("SELECT {ASSET_COLUMNS} FROM assets WHERE id = $1")),
+            asset_mesh: placeholders("SELECT mesh FROM assets WHERE id = $1".into()),
+            list_assets: format!("SELECT {ASSET_COLUMNS} FROM assets ORDER BY seq DESC"),
+            delete_asset: placeholders("DELETE FROM assets WHERE id = $1".into()),
         }
     }
 }
@@ -566,6 +611,77 @@ macro_rules! sql_store {
                     .await
                     .map_err(|e| $crate::jobs::StoreError::Backend(e.to_string()))??;
                 Ok(Some($crate::jobs::StoredResult { media_type: media_type(&media)?, bytes }))
+            }
+
+            async fn put_asset(
+                &self,
+                asset: &$crate::jobs::AssetRecord,
+                mesh: &[u8],
+                room: $crate::jobs::AssetRoom,
+            ) -> Result<$crate::jobs::PutAsset, $crate::jobs::StoreError> {
+                use $crate::jobs::PutAsset;
+                use $crate::jobs::store::sql::{backend, int};
+                let added = sqlx::query(&self.sql.put_asset)
+                    .bind(&asset.id)
+                    .bind(int(asset.vertices))
+                    .bind(int(asset.triangles))
+                    .bind(int(asset.bytes))
+                    .bind(int(asset.created_ms))
+                    .bind(mesh)
+                    .bind(int(room.max_assets.min(i64::MAX as u64)))
+                    .bind(int(room.max_bytes.min(i64::MAX as u64)))
+                    .execute(&self.pool)
+                    .await
+                    .map_err(backend)?;
+                if added.rows_affected() == 1 {
+                    return Ok(PutAsset::Added);
+                }
+                if let Some(existing) = self.asset(&asset.id).await? {
+                    return Ok(PutAsset::Exists(existing));
+                }
+                let (assets, bytes): (i64, i64) =
+                    sqlx::query_as(&self.sql.asset_usage).fetch_one(&self.pool).await.map_err(backend)?;
+                Ok(PutAsset::Full { assets: assets as u64, bytes: bytes as u64 })
+            }
+
+            async fn asset(
+                &self,
+                id: &str,
+            ) -> Result<Option<$crate::jobs::AssetRecord>, $crate::jobs::StoreError> {
+                Ok(sqlx::query_as::<_, $crate::jobs::store::sql::AssetRow>(&self.sql.asset)
+                    .bind(id)
+                    .fetch_optional(&self.pool)
+                    .await
+                    .map_err($crate::jobs::store::sql::backend)?
+                    .map($crate::jobs::store::sql::AssetRow::into_record))
+            }
+
+            async fn asset_mesh(&self, id: &str) -> Result<Option<Vec<u8>>, $crate::jobs::StoreError> {
+                let row: Option<(Vec<u8>,)> = sqlx::query_as(&self.sql.asset_mesh)
+                    .bind(id)
+                    .fetch_optional(&self.pool)
+                    .await
+                    .map_err($crate::jobs::store::sql::backend)?;
+                Ok(row.map(|(mesh,)| mesh))
+            }
+
+            async fn list_assets(&self) -> Result<Vec<$crate::jobs::AssetRecord>, $crate::jobs::StoreError> {
+                Ok(sqlx::query_as::<_, $crate::jobs::store::sql::AssetRow>(&self.sql.list_assets)
+                    .fetch_all(&self.pool)
+                    .await
+                    .map_err($crate::jobs::store::sql::backend)?
+                    .into_iter()
+                    .map($crate::jobs::store::sql::AssetRow::into_record)
+                    .collect())
+            }
+
+            async fn delete_asset(&self, id: &str) -> Result<bool, $crate::jobs::StoreError> {
+                let deleted = sqlx::query(&self.sql.delete_asset)
+                    .bind(id)
+                    .execute(&self.pool)
+                    .await
+                    .map_err($crate::jobs::store::sql::backend)?;
+                Ok(deleted.rows_affected() == 1)
             }
         }
     };
