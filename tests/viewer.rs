@@ -171,6 +171,8 @@ fn report_lines(stdout: &str) -> Vec<Value> {
 /// Each example through the page in Chromium: picked, run as a job, played to its final frame
 /// and held there; the screenshot of that frame shows the cloth's colour where the empty view
 /// (the control) shows none, and moving the scrubber to the first frame changes the picture.
+/// Then every shading draws the cloth, a refused scene's problems are listed at their pointers,
+/// and a sweep pasted in the editor shows its table and plot.
 /// Screenshots are kept in `target/viewer-screenshots/`.
 #[test]
 #[ignore = "needs node, .ci/node (npm ci --prefix .ci/node) and Chromium (apt-get install chromium)"]
@@ -222,4 +224,21 @@ fn every_example_plays_through_the_page_in_chromium() {
         assert_eq!(line["timeShownAfterScrub"], "0.000 s", "{line}");
         assert!(shots.join(format!("{name}-final.png")).exists());
     }
+    let shadings: Vec<&Value> = lines.iter().filter(|l| l.get("shading").is_some()).collect();
+    assert_eq!(shadings.len(), 5, "{stdout}");
+    for line in shadings {
+        assert!(line["colouredPixels"].as_u64().unwrap() >= 2000, "{line}");
+    }
+    // The server's problems, each at its pointer, as the page lists them.
+    let refused = lines.iter().find(|l| l.get("refused").is_some()).expect("a refused scene");
+    let errors: Vec<&str> =
+        refused["errors"].as_array().unwrap().iter().map(|e| e.as_str().unwrap()).collect();
+    assert!(errors.iter().any(|e| e.starts_with("/duration: ")), "{errors:?}");
+    assert!(errors.iter().any(|e| e.starts_with("/bodies/0/mass: ")), "{errors:?}");
+    // examples/sweeps/tiny.json: 2 integrators × 2 steps, its rows and its plot.
+    let sweep = &lines.iter().find(|l| l.get("sweep").is_some()).expect("a sweep")["sweep"];
+    assert_eq!(sweep["rows"], 4, "{sweep}");
+    assert!(sweep["heading"].as_str().unwrap().starts_with("5 of 5 runs ended"), "{sweep}");
+    assert!(sweep["columns"].as_array().unwrap().iter().any(|c| c == "integrator"), "{sweep}");
+    assert!(sweep["plotWidth"].as_u64().unwrap() > 0, "{sweep}");
 }

@@ -83,6 +83,17 @@ function clothPixels(png) {
     return count;
 }
 
+/** Pixels of a strong colour (the cloth in any shading; not the grey background or colliders). */
+function colouredPixels(png) {
+    const { pixels } = decodePng(png);
+    let count = 0;
+    for (let i = 0; i < pixels.length; i += 4) {
+        const [r, g, b] = [pixels[i], pixels[i + 1], pixels[i + 2]];
+        if (Math.max(r, g, b) - Math.min(r, g, b) > 80) count++;
+    }
+    return count;
+}
+
 function changedPixels(a, b) {
     const [x, y] = [decodePng(a).pixels, decodePng(b).pixels];
     let count = 0;
@@ -102,7 +113,13 @@ try {
 }
 const problems = [];
 const page = await browser.newPage({ viewport: { width: 1280, height: 800 } });
-page.on("console", (message) => { if (message.type() === "error") problems.push(`console: ${message.text()}`); });
+// Chromium logs a refused request as a console error: expected only for the scene refused on purpose.
+let refusing = false;
+page.on("console", (message) => {
+    if (message.type() !== "error") return;
+    if (refusing && /status of 422/.test(message.text())) return;
+    problems.push(`console: ${message.text()}`);
+});
 page.on("pageerror", (error) => problems.push(`page error: ${error.message}`));
 page.on("requestfailed", (request) => problems.push(`request failed: ${request.url()}`));
 
@@ -140,6 +157,43 @@ try {
         const shown = await page.evaluate(() => document.getElementById("time")?.textContent);
         console.log(JSON.stringify({ example: name, frames: state.frames, status: state.status, clothPixels: clothPixels(last), firstFrameClothPixels: clothPixels(first), scrubbedPixelsChanged: changedPixels(last, first), timeShownAfterScrub: shown }));
     }
+    // Every shading of the last result shown draws the cloth, at its final frame.
+    await page.locator("#scrub").fill(await page.locator("#scrub").getAttribute("max") ?? "0");
+    for (const shading of ["flat", "checker", "wireframe", "strain", "smooth"]) {
+        await page.selectOption("#shading", shading);
+        await page.waitForTimeout(100);
+        const shot = await view.screenshot({ path: path.join(shots, `shading-${shading}.png`) });
+        console.log(JSON.stringify({ shading, clothPixels: clothPixels(shot), colouredPixels: colouredPixels(shot) }));
+    }
+    // A scene the server refuses: its problems are listed at their JSON Pointers.
+    await page.fill("#scene", JSON.stringify({ duration: -1, bodies: [{ type: "cloth", mass: 0 }] }));
+    refusing = true;
+    await page.click("#submit");
+    await page.waitForFunction(() => document.body.dataset.state === "error", null, { timeout: 20000 });
+    refusing = false;
+    const errors = await page.locator("#errors li").allTextContents();
+    console.log(JSON.stringify({ refused: true, errors }));
+    // A sweep pasted in the editor: its table and plot once every run has ended.
+    await page.fill("#scene", fs.readFileSync(path.join(here, "..", "..", "examples", "sweeps", "tiny.json"), "utf8"));
+    await page.click("#submit");
+    await page.waitForFunction(() => document.querySelector("#sweep table") !== null, null, { timeout: 20000 });
+    for (let tries = 0; tries < 100 && (await page.locator("#sweep p").textContent())?.includes("still running"); tries++) {
+        await page.waitForTimeout(200);
+        await page.click("#load-sweep");
+        await page.waitForTimeout(100);
+    }
+    await page.waitForFunction(() => {
+        const plot = document.querySelector("#sweep img");
+        return plot instanceof HTMLImageElement && plot.complete && plot.naturalWidth > 0;
+    }, null, { timeout: 20000 });
+    const sweep = await page.evaluate(() => ({
+        heading: document.querySelector("#sweep p")?.textContent,
+        rows: document.querySelectorAll("#sweep tbody tr").length,
+        columns: [...document.querySelectorAll("#sweep thead th")].map((th) => th.textContent),
+        plotWidth: /** @type {HTMLImageElement} */ (document.querySelector("#sweep img")).naturalWidth,
+    }));
+    console.log(JSON.stringify({ sweep }));
+    await page.screenshot({ path: path.join(shots, "page-sweep.png") });
 } catch (e) {
     problems.push(`driver: ${e.message}`);
 }
