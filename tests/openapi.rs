@@ -51,7 +51,7 @@ async fn every_described_operation_is_routed() {
     let id = post_json(&app, "/jobs", TINY).await.json()["id"].as_str().unwrap().to_string();
     poll_until(&app, &id, is_final).await;
     for (method, path) in spec_operations(&yaml()) {
-        let uri = path.replace("{id}", &id);
+        let uri = path.replace("{id}", &id).replace("{file}", "main.js");
         let request = Request::builder()
             .method(method.as_str())
             .uri(&uri)
@@ -85,11 +85,14 @@ fn the_scene_schema_lists_every_top_level_field() {
     assert_eq!(described, accepted, "{detail}");
 }
 
-/// Every operation but `/healthz` is under the bearer scheme and lists its 401; every operation
+/// The operations open without a token: liveness and the viewer's page and files.
+const OPEN_PATHS: [&str; 3] = ["/healthz", "/", "/viewer/{file}"];
+
+/// Every operation but the open ones is under the bearer scheme and lists its 401; every operation
 /// lists the 421 of a refused `Host` and the 414 and 431 of an oversized head, and every POST the
 /// 415 of a body that is not JSON or not in gzip.
 #[test]
-fn every_operation_but_healthz_declares_the_bearer_scheme() {
+fn every_operation_but_the_open_ones_declares_the_bearer_scheme() {
     let spec = yaml();
     assert_eq!(spec["components"]["securitySchemes"]["bearer"]["scheme"], "bearer");
     assert_eq!(spec["security"], serde_json::json!([{"bearer": []}, {}]));
@@ -109,7 +112,7 @@ fn every_operation_but_healthz_declares_the_bearer_scheme() {
                 "{method} {path}"
             );
         }
-        if path == "/healthz" {
+        if OPEN_PATHS.contains(&path.as_str()) {
             assert_eq!(operation["security"], serde_json::json!([]), "{method} {path}");
             assert!(responses.get("401").is_none(), "{method} {path}");
         } else {
@@ -258,5 +261,50 @@ fn redocly_finds_no_problem_in_the_description() {
         totals["errors"],
         totals["warnings"],
         report["problems"],
+    );
+}
+
+/// The viewer's TypeScript types (`src/api/viewer/drape-api.d.ts`) are what openapi-typescript
+/// (pinned in `.ci/node`) generates from the description today, and the viewer's scripts,
+/// typed by JSDoc against them, compile under `tsc --noEmit --checkJs --strict`: a field the
+/// description does not have, or a wrong type, fails here.
+#[test]
+#[ignore = "needs node and .ci/node (npm ci --prefix .ci/node)"]
+fn the_viewer_compiles_against_types_generated_from_the_description() {
+    let repo = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let node_modules = repo.join(".ci/node/node_modules");
+    let generator = node_modules.join("openapi-typescript/bin/cli.js");
+    let tsc = node_modules.join("typescript/bin/tsc");
+    assert!(
+        generator.is_file() && tsc.is_file(),
+        "openapi-typescript or typescript is not installed: node, then `npm ci --prefix .ci/node`"
+    );
+    let dir = tempfile::tempdir().unwrap();
+    let generated = dir.path().join("drape-api.d.ts");
+    let output = std::process::Command::new("node")
+        .arg(&generator)
+        .arg(repo.join("openapi/openapi.yaml"))
+        .arg("-o")
+        .arg(&generated)
+        .output()
+        .unwrap_or_else(|e| panic!("cannot run node ({e}): install node, then `npm ci --prefix .ci/node`"));
+    assert!(output.status.success(), "openapi-typescript: {}", String::from_utf8_lossy(&output.stderr));
+    let checked_in = std::fs::read_to_string(repo.join("src/api/viewer/drape-api.d.ts")).unwrap();
+    assert!(
+        std::fs::read_to_string(&generated).unwrap() == checked_in,
+        "src/api/viewer/drape-api.d.ts is not what openapi/openapi.yaml gives; regenerate it with \
+         `node .ci/node/node_modules/openapi-typescript/bin/cli.js openapi/openapi.yaml -o src/api/viewer/drape-api.d.ts`"
+    );
+    let output = std::process::Command::new("node")
+        .arg(&tsc)
+        .args(["--project", "src/api/viewer/tsconfig.json", "--pretty", "false"])
+        .current_dir(repo)
+        .output()
+        .unwrap();
+    assert!(
+        output.status.success(),
+        "tsc finds the viewer's calls at odds with the description:\n{}{}",
+        String::from_utf8_lossy(&output.stdout),
+        String::from_utf8_lossy(&output.stderr)
     );
 }

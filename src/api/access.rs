@@ -1,7 +1,8 @@
 //! Who may call the API: bearer tokens and the `Host` names requests may be addressed to.
 //!
-//! With tokens configured (`--auth-token`), every request but `GET /healthz` and CORS preflights
-//! must carry `Authorization: Bearer <token>` with one of them, or gets a `401` problem with
+//! With tokens configured (`--auth-token`), every request but `GET /healthz`, the viewer's page
+//! and files (`GET /`, `GET /viewer/{file}`: nothing secret, and a browser navigating sends no
+//! token) and CORS preflights must carry `Authorization: Bearer <token>` with one of them, or gets a `401` problem with
 //! `WWW-Authenticate: Bearer`. Tokens are compared in time that depends on the lengths of the
 //! token sent and of the tokens held, never on their contents, and every token held is compared,
 //! so a client learns nothing of a token from how long a refusal takes.
@@ -23,8 +24,10 @@ use subtle::{Choice, ConstantTimeEq};
 use super::AppState;
 use super::problem::AppError;
 
-/// The path that stays open without a token, for liveness probes.
-const OPEN_PATH: &str = "/healthz";
+/// Whether `path` stays open without a token: liveness probes and the viewer's static files.
+fn is_open(path: &str) -> bool {
+    path == "/healthz" || path == "/" || path.strip_prefix("/viewer/").is_some_and(|file| !file.contains('/'))
+}
 
 /// A secret a client presents as `Authorization: Bearer <token>`. Its `Debug` form hides it.
 #[derive(Clone, PartialEq, Eq)]
@@ -148,7 +151,7 @@ pub(super) async fn check_host(State(state): State<AppState>, request: Request, 
 /// Refuses a request without an accepted bearer token with `401`, when tokens are configured.
 pub(super) async fn require_token(State(state): State<AppState>, request: Request, next: Next) -> Response {
     let tokens = &state.config.auth_tokens;
-    if tokens.is_empty() || request.uri().path() == OPEN_PATH {
+    if tokens.is_empty() || is_open(request.uri().path()) {
         return next.run(request).await;
     }
     let presented = request.headers().get(header::AUTHORIZATION).map(|v| bearer_token(v.as_bytes()));

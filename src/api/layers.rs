@@ -101,6 +101,8 @@ fn cors(origins: &[String]) -> CorsLayer {
             header::RETRY_AFTER,
             header::CONTENT_LOCATION,
             header::WWW_AUTHENTICATE,
+            header::ETAG,
+            header::CACHE_CONTROL,
             HeaderName::from_static("drape-job-id"),
             HeaderName::from_static("drape-job-status"),
             HeaderName::from_static("drape-omitted-fields"),

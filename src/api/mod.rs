@@ -8,6 +8,7 @@
 mod access;
 mod assets;
 mod events;
+mod examples;
 mod extract;
 mod jobs;
 mod layers;
@@ -16,6 +17,7 @@ mod openapi;
 mod problem;
 mod simulate;
 mod sweeps;
+mod viewer;
 mod views;
 
 use std::sync::Arc;
@@ -27,9 +29,11 @@ use axum::http::{Method, Uri};
 use axum::routing::{MethodFilter, MethodRouter, on};
 
 pub use access::{AllowedHosts, AuthToken};
+pub use examples::EXAMPLES;
 pub use metrics::HttpMetrics;
 pub use openapi::{OPENAPI_YAML, spec as openapi_spec};
 pub use problem::{AppError, PROBLEM_JSON};
+pub use viewer::viewer_files;
 
 use crate::jobs::{Jobs, Sweeps};
 
@@ -136,6 +140,9 @@ pub fn routes() -> Vec<Route> {
         route(Method::GET, "/healthz", healthz),
         route(Method::GET, "/metrics", metrics::metrics),
         route(Method::GET, "/openapi.json", openapi::openapi),
+        route(Method::GET, "/", viewer::index),
+        route(Method::GET, "/viewer/{file}", viewer::file),
+        route(Method::GET, "/examples", examples::list),
     ]
 }
 
