@@ -9,6 +9,7 @@
 
 mod compile;
 mod error;
+mod fabrics;
 mod parse;
 mod types;
 mod validate;
@@ -16,6 +17,7 @@ mod whole;
 
 pub use compile::{BodyInfo, Compiled, DtSource};
 pub use error::{FieldError, SceneError};
+pub use fabrics::{DEFAULT_DAMPING_TIME, FabricSpec};
 pub use types::*;
 
 #[cfg(test)]
