@@ -2,11 +2,14 @@
 //! sheet, the membrane's stress under uniaxial stretch, the convergence of a drape with the
 //! resolution, the cantilever against the heavy elastica, and zero-length springs.
 
+mod elastica;
+
 use drape::scene::Scene;
 use drape::solver::{
     Chain, Cloth, Config, Dynamics, Fabric, IntegratorKind, Model, Orientation, Simulation, SpringParams,
     Vectors,
 };
+use elastica::elastica_chord_angle;
 use glam::DVec3;
 
 const COTTONISH: Fabric =
@@ -204,40 +207,6 @@ fn a_drape_converges_with_the_resolution() {
     eprintln!("tips {tips:?}: gaps {coarse:.3e} m, {fine:.3e} m, observed order {order:.2}");
     assert!(tips[2].y < -0.01 * length, "the plate sags: {tips:?}");
     assert!(order > 0.8, "gaps {coarse:.3e} m then {fine:.3e} m: order {order:.2}");
-}
-
-/// The heavy elastica of a cantilever, `θ'' = -λ (1 - s) cos θ` on `s ∈ [0, 1]` with `θ(0) = 0`
-/// and `θ'(1) = 0` (`θ` the slope below horizontal, `s` the arc length over the free length,
-/// `λ = w l³ / B`), by shooting on `θ'(0)` with RK4: the tip chord's angle below horizontal, in
-/// radians.
-fn elastica_chord_angle(lambda: f64) -> f64 {
-    const STEPS: usize = 4000;
-    // Integrates (θ, θ', x, y) from 0 to 1.
-    let shoot = |slope: f64| {
-        let rate = |s: f64, [theta, bend, _, _]: [f64; 4]| {
-            [bend, -lambda * (1.0 - s) * theta.cos(), theta.cos(), theta.sin()]
-        };
-        let h = 1.0 / STEPS as f64;
-        let mut y = [0.0, slope, 0.0, 0.0];
-        for k in 0..STEPS {
-            let s = k as f64 * h;
-            let add = |a: [f64; 4], b: [f64; 4], f: f64| std::array::from_fn(|i| a[i] + f * b[i]);
-            let k1 = rate(s, y);
-            let k2 = rate(s + 0.5 * h, add(y, k1, 0.5 * h));
-            let k3 = rate(s + 0.5 * h, add(y, k2, 0.5 * h));
-            let k4 = rate(s + h, add(y, k3, h));
-            y = std::array::from_fn(|i| y[i] + h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]));
-        }
-        y
-    };
-    // θ'(1) falls as θ'(0) grows while θ stays within a right angle: bisect on it.
-    let (mut low, mut high) = (0.0, lambda);
-    for _ in 0..100 {
-        let middle = 0.5 * (low + high);
-        if shoot(middle)[1] > 0.0 { high = middle } else { low = middle }
-    }
-    let [_, _, x, y] = shoot(0.5 * (low + high));
-    y.atan2(x)
 }
 
 #[test]
@@ -446,4 +415,18 @@ fn a_mesh_of_a_material_bends_by_hinges_and_weighs_its_area() {
     // Van Gelder: an edge of one right triangle of area ½ and length 1 has k = (8/9) 900 · ½.
     let leg = compiled.model.springs.iter().find(|s| (s.i, s.j) == (0, 1)).expect("the edge 0-1");
     assert!((leg.stiffness - 400.0).abs() < 1e-9, "{}", leg.stiffness);
+}
+
+#[test]
+fn a_mesh_whose_material_would_overflow_on_its_slivers_is_refused() {
+    let text = |stretch: f64| {
+        format!(
+            r#"{{"duration": 1, "bodies": [{{"type": "mesh",
+                "vertices": [0, 0, 0, 1e-6, 0, 0, 0, 0, 1e6], "triangles": [0, 2, 1],
+                "material": {{"density": 0.3, "stretch": {stretch:e}, "shear": 1, "bending": 1e-5}}}}]}}"#
+        )
+    };
+    // The short edge's k = (8/9) S A / |e|² = (8/9) S 0.5 / 1e-12.
+    assert_eq!(problems(&text(1e3)), Vec::<String>::new());
+    assert_eq!(problems(&text(1e20)), ["/bodies/0/material"]);
 }

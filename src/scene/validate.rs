@@ -391,6 +391,50 @@ fn mesh_problems(p: &mut Problems, at: &str, m: &super::types::MeshSpec) {
             field("vertices"),
             format!("vertex {v} is on no triangle of positive area, so it would have no mass"),
         );
+        return;
+    }
+    if let Some(fabric) = &m.material
+        && p.0.iter().all(|e| !e.pointer.starts_with(at))
+    {
+        mesh_fabric_range(p, &field("material"), m, fabric);
+    }
+}
+
+/// A mesh's material makes constants from its triangles' shapes: each spring's stiffness and
+/// damping, each hinge's stiffness times its largest squared weight (a sliver triangle's
+/// cotangents are large) and each vertex's mass must stay in [`POSITIVE_RANGE`], so that no valid
+/// scene overflows or vanishes in single precision.
+fn mesh_fabric_range(p: &mut Problems, pointer: &str, m: &super::types::MeshSpec, fabric: &FabricSpec) {
+    let mut model = crate::solver::Model::default();
+    let mesh = crate::solver::Mesh {
+        vertices: m.vertex_positions(),
+        triangles: m.triangle_indices(),
+        mass: 1.0,
+        velocity: glam::DVec3::ZERO,
+        structural: crate::solver::SpringParams { stiffness: 1.0, damping: 0.0 },
+        bending: crate::solver::SpringParams { stiffness: 1.0, damping: 0.0 },
+        pins: Vec::new(),
+    };
+    model.add_fabric_mesh(&mesh, &fabric.fabric());
+    let in_range = |v: f64| v.is_finite() && POSITIVE_RANGE.contains(&v);
+    let at_most = |v: f64| v.is_finite() && v <= *POSITIVE_RANGE.end();
+    let springs = model.springs.iter().all(|s| in_range(s.stiffness) && at_most(s.damping));
+    let hinges = model.bending.iter().all(|h| {
+        let largest = h.weights.iter().fold(0.0f64, |w, k| w.max(k.abs()));
+        in_range(h.stiffness)
+            && at_most(h.stiffness * largest * largest)
+            && at_most(h.damping * largest * largest)
+    });
+    let masses = model.masses.iter().all(|&mass| in_range(mass));
+    if !(springs && hinges && masses) {
+        let (low, high) = POSITIVE_RANGE.into_inner();
+        p.add(
+            pointer,
+            format!(
+                "with these triangles a spring's stiffness, a hinge's or a vertex's mass would leave \
+                 [{low:e}, {high:e}]"
+            ),
+        );
     }
 }
 
