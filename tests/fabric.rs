@@ -1,4 +1,4 @@
-//! Fabrics in physical units: the hinges' bending energy against the closed form of a bent
+//! Fabrics in physical units: the bending elements' energy against the closed form of a bent
 //! sheet, the membrane's stress under uniaxial stretch, the convergence of a drape with the
 //! resolution, the cantilever against the heavy elastica, and zero-length springs.
 
@@ -24,8 +24,8 @@ fn sheet(n: usize, fabric: &Fabric) -> Model {
     model
 }
 
-/// The elastic energy of the model's hinges alone with its particles at `positions`.
-fn hinge_energy(model: &Model, positions: &[DVec3]) -> f64 {
+/// The elastic energy of the model's bending elements alone with its particles at `positions`.
+fn bending_energy(model: &Model, positions: &[DVec3]) -> f64 {
     let bare = Model {
         positions: positions.to_vec(),
         velocities: vec![DVec3::ZERO; positions.len()],
@@ -51,11 +51,12 @@ fn wrapped(rest: &[DVec3], kappa: f64, axis: DVec3) -> Vec<DVec3> {
 }
 
 #[test]
-fn hinges_of_a_sheet_bent_to_a_cylinder_store_half_b_kappa_squared_per_area() {
+fn bending_elements_of_a_sheet_bent_to_a_cylinder_store_half_b_kappa_squared_per_area() {
     // A sheet wrapped onto a cylinder of curvature κ stores ½ B κ² per unit area, whatever the
-    // direction of the cylinder's axis, so its bending moment per unit width is B κ. Edges on the
-    // sheet's border have one triangle and no hinge, so the discrete energy falls short by a
-    // strip along the border: a relative error of first order in the spacing.
+    // direction of the cylinder's axis, so its bending moment per unit width is B κ. The first
+    // and last particles along a row or column have no second difference, so the discrete
+    // energy falls short by a strip along the border: a relative error of first order in the
+    // spacing.
     let kappa = 2.0;
     let exact = 0.5 * COTTONISH.bending * kappa * kappa;
     let axes = [DVec3::Z, DVec3::X, DVec3::new(1.0, 0.0, 1.0).normalize()];
@@ -64,7 +65,7 @@ fn hinges_of_a_sheet_bent_to_a_cylinder_store_half_b_kappa_squared_per_area() {
             .into_iter()
             .map(|n| {
                 let model = sheet(n, &COTTONISH);
-                let energy = hinge_energy(&model, &wrapped(&model.positions, kappa, axis));
+                let energy = bending_energy(&model, &wrapped(&model.positions, kappa, axis));
                 (energy - exact) / exact
             })
             .collect();
@@ -77,21 +78,21 @@ fn hinges_of_a_sheet_bent_to_a_cylinder_store_half_b_kappa_squared_per_area() {
 }
 
 #[test]
-fn hinge_energy_is_quadratic_in_the_curvature_and_blind_to_rigid_motion() {
+fn bending_energy_is_quadratic_in_the_curvature_and_blind_to_rigid_motion() {
     let model = sheet(21, &COTTONISH);
     let rest = &model.positions;
-    let e1 = hinge_energy(&model, &wrapped(rest, 1.0, DVec3::Z));
-    let e2 = hinge_energy(&model, &wrapped(rest, 0.5, DVec3::Z));
-    // Wrapping is exactly isometric, and the energy of a wrapped hinge is |e|²·4 sin²(θ/2) over
-    // its area: quadratic in κ up to the θ⁴ term of the sine.
+    let e1 = bending_energy(&model, &wrapped(rest, 1.0, DVec3::Z));
+    let e2 = bending_energy(&model, &wrapped(rest, 0.5, DVec3::Z));
+    // Wrapping is exactly isometric, and a wrapped row's second difference is 4 sin²(a κ / 2) / κ
+    // long: quadratic in κ up to the (a κ)⁴ term of the sine.
     assert!((e1 / e2 - 4.0).abs() < 4.0 * 1e-3, "{e1} against {e2}");
     let turned = glam::DQuat::from_axis_angle(DVec3::new(1.0, 2.0, 3.0).normalize(), 0.7);
     let moved: Vec<DVec3> = rest.iter().map(|&p| turned * p + DVec3::new(3.0, -1.0, 2.0)).collect();
-    assert!(hinge_energy(&model, &moved) < 1e-20);
+    assert!(bending_energy(&model, &moved) < 1e-20);
 }
 
 #[test]
-fn hinge_forces_are_the_gradient_of_their_energy() {
+fn bending_forces_are_the_gradient_of_their_energy() {
     let model = sheet(6, &COTTONISH);
     let bent: Vec<DVec3> = wrapped(&model.positions, 3.0, DVec3::new(0.6, 0.0, 0.8))
         .iter()
@@ -109,9 +110,9 @@ fn hinge_forces_are_the_gradient_of_their_energy() {
         for axis in 0..3 {
             let mut nudged = bent.clone();
             nudged[p][axis] += step;
-            let up = hinge_energy(&bare, &nudged);
+            let up = bending_energy(&bare, &nudged);
             nudged[p][axis] -= 2.0 * step;
-            let down = hinge_energy(&bare, &nudged);
+            let down = bending_energy(&bare, &nudged);
             let gradient = (up - down) / (2.0 * step);
             let force = forces.get(p).to_dvec3()[axis];
             assert!(
