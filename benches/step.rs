@@ -1,6 +1,7 @@
 //! One step of the performance peers' hanging cloth at N = 32, 64, 128 and 256, for symplectic
 //! Euler, RK4 and implicit Euler in f32 and f64; and the same cloth given as a triangle mesh, whose
-//! springs go through the general spring pass, for symplectic Euler.
+//! springs go through the general spring pass, for symplectic Euler; and the cloth as a fabric
+//! bending by its bending elements, for symplectic and implicit Euler.
 //!
 //! Explicit integrators use the peers' step for each size (the largest power-of-two fraction of
 //! 1e-4 s that is stable); implicit Euler uses 1/600 s. `docs/performance.md` has the figures.
@@ -14,7 +15,8 @@ use criterion::{Criterion, criterion_group, criterion_main};
 use glam::DVec3;
 
 use drape::solver::{
-    Cloth, Config, IntegratorKind, IntegratorSettings, Mesh, Model, Real, Simulation, SpringParams, parallel,
+    Cloth, Config, Fabric, IntegratorKind, IntegratorSettings, Mesh, Model, Real, Simulation, SpringParams,
+    parallel,
 };
 
 /// The hanging cloth of the performance peers: 1 m², 1 kg, every spring at k = 5000 N/m and
@@ -42,6 +44,20 @@ fn mesh(n: usize) -> Model {
         bending: springs,
         pins: vec![0, n - 1],
     });
+    model
+}
+
+/// The peers' cloth as a fabric that bends by its bending elements instead of springs two apart:
+/// 1 kg/m², the same structural and shear springs (k = 5000 N/m, damping 0.5 N·s/m: stretch
+/// 10,000 N/m, shear 5,000 N/m, damping time 1e-4 s), bending rigidity 0.01 N·m.
+fn fabric(n: usize) -> Model {
+    let springs = SpringParams { stiffness: 5000.0, damping: 0.5 };
+    let fabric = Fabric { density: 1.0, stretch: 10_000.0, shear: 5000.0, bending: 0.01, damping_time: 1e-4 };
+    let mut model = Model::default();
+    model.add_fabric_cloth(
+        &Cloth { pins: vec![[0, 0], [n - 1, 0]], ..Cloth::square_metre(n, springs) },
+        &fabric,
+    );
     model
 }
 
@@ -98,6 +114,10 @@ fn steps(c: &mut Criterion) {
         {
             bench_body::<f32>(c, "cloth", cloth, n, integrator);
             bench_body::<f64>(c, "cloth", cloth, n, integrator);
+        }
+        for integrator in [IntegratorKind::SymplecticEuler, IntegratorKind::ImplicitEuler] {
+            bench_body::<f32>(c, "fabric", fabric, n, integrator);
+            bench_body::<f64>(c, "fabric", fabric, n, integrator);
         }
         bench_body::<f32>(c, "mesh", mesh, n, IntegratorKind::SymplecticEuler);
         bench_body::<f64>(c, "mesh", mesh, n, IntegratorKind::SymplecticEuler);

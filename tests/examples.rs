@@ -3,6 +3,8 @@
 //! step, a symmetric tablecloth, a flag blown downwind, a jelly cube at rest on the ground,
 //! self-collision distances and the strain limit.
 
+mod elastica;
+
 use std::path::Path;
 
 use drape::run::{self, Control, Status};
@@ -93,6 +95,7 @@ fn every_example_runs_as_drape_run_runs_it() {
         "self_collision.json",
         "strain_limited.json",
         "drape_tester.json",
+        "cantilever.json",
     ] {
         assert!(names.iter().any(|n| n == name), "examples/{name} is missing");
     }
@@ -118,6 +121,7 @@ fn every_example_runs_as_drape_run_runs_it() {
             "jelly_cube.json" => &["gravity", "drag", "springs", "plane"],
             "self_collision.json" => &["gravity", "drag", "springs", "self_collision", "plane"],
             "strain_limited.json" => &["gravity", "drag", "springs", "strain_limit", "sphere"],
+            "cantilever.json" => &["gravity", "drag", "springs", "bending"],
             _ => continue,
         };
         assert_eq!(stages, expected, "{name}");
@@ -399,4 +403,44 @@ fn drape_tester_reports_the_coefficient_of_its_shadow() {
     let folds =
         (0..m).filter(|&i| smooth[i] > smooth[(i + m - 1) % m] && smooth[i] >= smooth[(i + 1) % m]).count();
     assert_eq!(folds, 6);
+#[test]
+fn cantilever_strip_rests_at_the_heavy_elasticas_chord_angle() {
+    // A strip clamped by its first two columns (the clamp's edge midway between them) over a free
+    // length l of 40.5 spacings, weight w = ρ g per area, rigidity B: at rest, its tip chord
+    // falls by the heavy elastica's angle for λ = w l³ / B, which the example sets to 8, twice
+    // the bending length c = (B/w)^(1/3) (Peirce's 41.5° cantilever).
+    let scene = scene("cantilever.json");
+    let compiled = scene.compile();
+    let drape::scene::Body::Cloth(cloth) = &scene.bodies[0] else { panic!("a cloth") };
+    let fabric = cloth.material.expect("a material");
+    let [nx, ny] = cloth.resolution;
+    let free = cloth.size[0] * (nx as f64 - 1.5) / (nx - 1) as f64;
+    let weight = fabric.density * 9.81;
+    let lambda = weight * free.powi(3) / fabric.bending;
+    assert!((lambda - 8.0).abs() < 1e-2, "λ = {lambda}");
+    assert!((fabric.bending_length(9.81) - free / 2.0).abs() < 1e-3 * free);
+    let mut sim = Simulation::<f64>::new(&compiled.model, &compiled.config);
+    let rest = compiled.stop_at_rest.expect("the example stops at rest");
+    while sim.steps_taken() < compiled.steps {
+        sim.step().expect("stable");
+        if max_speed(&sim) < rest {
+            break;
+        }
+    }
+    assert!(sim.steps_taken() < compiled.steps, "the strip comes to rest");
+    let x = |p: usize| sim.state().positions.get(p).to_dvec3();
+    let simulated = (0..ny)
+        .map(|j| {
+            let d = x(j * nx + nx - 1) - 0.5 * (x(j * nx) + x(j * nx + 1));
+            (-d.y).atan2(d.x)
+        })
+        .sum::<f64>()
+        / ny as f64;
+    let exact = elastica::elastica_chord_angle(lambda);
+    assert!(
+        (simulated - exact).abs().to_degrees() < 1.5,
+        "{:.2}° against the elastica's {:.2}°",
+        simulated.to_degrees(),
+        exact.to_degrees()
+    );
 }

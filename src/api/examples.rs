@@ -6,9 +6,11 @@ use serde_json::{Value, json};
 
 /// Each example's name (its file name without `.json`) and its scene.
 pub const EXAMPLES: &[(&str, &str)] = &[
+    ("cantilever", include_str!("../../examples/cantilever.json")),
     ("chain", include_str!("../../examples/chain.json")),
     ("drape_sphere", include_str!("../../examples/drape_sphere.json")),
     ("drape_sphere_explicit", include_str!("../../examples/drape_sphere_explicit.json")),
+    ("drape_tester", include_str!("../../examples/drape_tester.json")),
     ("flag", include_str!("../../examples/flag.json")),
     ("hanging_cloth", include_str!("../../examples/hanging_cloth.json")),
     ("jelly_cube", include_str!("../../examples/jelly_cube.json")),

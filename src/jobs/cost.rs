@@ -3,7 +3,7 @@
 //!
 //! Work is counted in element-steps: each step costs one for every particle, every spring,
 //! every collider test of a particle (colliders × particles), every self-collision candidate
-//! pair and every wind triangle, RK4's four force evaluations and implicit Euler's passes
+//! pair, every bending element and every wind triangle, RK4's four force evaluations and implicit Euler's passes
 //! counted as that many; the error estimate's companions cost their own steps. Memory is an
 //! upper bound in bytes on what a run holds at once: the model and the simulation's arrays (per
 //! particle and per spring, by integrator and precision), the self-collision hash and its pairs,
@@ -29,6 +29,12 @@ pub const IMPLICIT_PASSES: u64 = 8;
 const MODEL_BYTES_PER_PARTICLE: u64 = 128;
 /// Bytes a spring costs in the model.
 const MODEL_BYTES_PER_SPRING: u64 = 48;
+/// Bytes a bending element costs in the model: four indices, four weights, stiffness and
+/// damping in `f64`.
+const MODEL_BYTES_PER_BENDING_ELEMENT: u64 = 64;
+/// Bytes a bending element costs in a running simulation (the same in `f64`, its copy in the
+/// implicit grid solver, the fused passes' force array counted per particle with the rest).
+const SIMULATION_BYTES_PER_BENDING_ELEMENT: u64 = 128;
 /// Bytes a triangle costs in the model.
 const MODEL_BYTES_PER_TRIANGLE: u64 = 16;
 /// Real numbers a particle costs in a running simulation, by integrator (state, forces,
@@ -144,6 +150,16 @@ impl Cost {
             stage("integrator", "/integrator".into(), per_step(elements.saturating_mul(passes - 1)), 0);
         }
 
+        let bending = compiled.model.bending.len() as u64;
+        if bending > 0 {
+            // Each element once per force evaluation, and again in each implicit product.
+            let work = bending.saturating_mul(passes);
+            let memory = bending
+                .saturating_mul(MODEL_BYTES_PER_BENDING_ELEMENT + SIMULATION_BYTES_PER_BENDING_ELEMENT);
+            step_work = step_work.saturating_add(work);
+            simulation_memory = simulation_memory.saturating_add(memory);
+            stage("bending", body_with_material(scene), per_step(work), memory);
+        }
         if !scene.colliders.is_empty() {
             let tests = particles.saturating_mul(scene.colliders.len() as u64);
             let memory = particles
@@ -252,6 +268,22 @@ fn largest_body(scene: &Scene) -> String {
         .max_by_key(|(_, b)| b.particle_count())
         .expect("a valid scene has a body");
     format!("/bodies/{at}{}", size_field(body))
+}
+
+/// The `material` of the largest body that has one: what switches the bending elements on.
+fn body_with_material(scene: &Scene) -> String {
+    let material = |b: &Body| match b {
+        Body::Cloth(c) => c.material.is_some(),
+        Body::Mesh(m) => m.material.is_some(),
+        Body::Chain(_) | Body::Lattice(_) => false,
+    };
+    scene
+        .bodies
+        .iter()
+        .enumerate()
+        .filter(|(_, b)| material(b))
+        .max_by_key(|(_, b)| b.particle_count())
+        .map_or_else(|| "/bodies".to_string(), |(at, _)| format!("/bodies/{at}/material"))
 }
 
 /// The field that sets a body's size.

@@ -215,22 +215,17 @@ fn params(spec: SpringSpec) -> SpringParams {
 fn add_body(model: &mut Model, body: &Body) -> std::ops::Range<usize> {
     let v = DVec3::from_array;
     match body {
-        Body::Cloth(c) if c.shape == ClothShape::Disk => model.add_disk(&c.solver_disk()),
-        Body::Cloth(c) => model.add_cloth(&solver::Cloth {
-            size: c.size,
-            resolution: c.resolution,
-            center: v(c.center),
-            orientation: match c.orientation {
-                OrientationName::Horizontal => solver::Orientation::Horizontal,
-                OrientationName::Vertical => solver::Orientation::Vertical,
-            },
-            mass: c.mass,
-            velocity: v(c.velocity),
-            structural: params(c.springs.structural),
-            shear: params(c.springs.shear),
-            bending: params(c.springs.bending),
-            pins: c.pin.clone(),
-        }),
+        Body::Cloth(c) if c.shape == ClothShape::Disk => match &c.material {
+            Some(material) => model.add_fabric_mesh(&c.solver_disk().mesh(), &material.fabric()),
+            None => model.add_disk(&c.solver_disk()),
+        },
+        Body::Cloth(c) => {
+            let cloth = cloth(c);
+            match &c.material {
+                Some(material) => model.add_fabric_cloth(&cloth, &material.fabric()),
+                None => model.add_cloth(&cloth),
+            }
+        }
         Body::Chain(c) => model.add_chain(&solver::Chain {
             start: v(c.start),
             end: v(c.end),
@@ -252,15 +247,40 @@ fn add_body(model: &mut Model, body: &Body) -> std::ops::Range<usize> {
             bending: params(l.springs.bending),
             pins: l.pin.clone(),
         }),
-        Body::Mesh(m) => model.add_mesh(&solver::Mesh {
-            vertices: m.vertex_positions(),
-            triangles: m.triangle_indices(),
-            mass: m.mass,
-            velocity: v(m.velocity),
-            structural: params(m.springs.structural),
-            bending: params(m.springs.bending),
-            pins: m.pin.clone(),
-        }),
+        Body::Mesh(m) => {
+            let mesh = solver::Mesh {
+                vertices: m.vertex_positions(),
+                triangles: m.triangle_indices(),
+                mass: m.mass,
+                velocity: v(m.velocity),
+                structural: params(m.springs.structural),
+                bending: params(m.springs.bending),
+                pins: m.pin.clone(),
+            };
+            match &m.material {
+                Some(material) => model.add_fabric_mesh(&mesh, &material.fabric()),
+                None => model.add_mesh(&mesh),
+            }
+        }
+    }
+}
+
+fn cloth(c: &super::types::ClothSpec) -> solver::Cloth {
+    let v = DVec3::from_array;
+    solver::Cloth {
+        size: c.size,
+        resolution: c.resolution,
+        center: v(c.center),
+        orientation: match c.orientation {
+            OrientationName::Horizontal => solver::Orientation::Horizontal,
+            OrientationName::Vertical => solver::Orientation::Vertical,
+        },
+        mass: c.mass,
+        velocity: v(c.velocity),
+        structural: params(c.springs.structural),
+        shear: params(c.springs.shear),
+        bending: params(c.springs.bending),
+        pins: c.pin.clone(),
     }
 }
 

@@ -11,6 +11,7 @@ mod compile;
 mod disk;
 mod drape_tester;
 mod error;
+mod fabrics;
 mod parse;
 mod types;
 mod validate;
@@ -20,6 +21,7 @@ pub use compile::{BodyInfo, Compiled, DtSource};
 pub use disk::DEFAULT_DIAMETER;
 pub use drape_tester::DrapeTester;
 pub use error::{FieldError, SceneError};
+pub use fabrics::{DEFAULT_DAMPING_TIME, FabricSpec};
 pub use types::*;
 
 #[cfg(test)]

@@ -96,6 +96,9 @@ fn read_collider(pointer: &str, mut value: Value) -> Result<ColliderSpec, FieldE
 
 fn read_body(pointer: &str, mut value: Value) -> Result<Body, FieldError> {
     let kind = take_type(pointer, &mut value, "a body", BODY_TYPES)?;
+    if matches!(kind.as_str(), "cloth" | "mesh") {
+        material_conflict(pointer, &value)?;
+    }
     match kind.as_str() {
         "cloth" => read(pointer, value).map(Body::Cloth),
         "chain" => read(pointer, value).map(Body::Chain),
@@ -106,6 +109,24 @@ fn read_body(pointer: &str, mut value: Value) -> Result<Body, FieldError> {
             format!("unknown body type `{other}`: expected {BODY_TYPES}"),
         )),
     }
+}
+
+/// A body with a `material` takes its stiffness and its mass from it: `springs` or `mass` beside
+/// it is a contradiction, refused rather than resolved.
+fn material_conflict(pointer: &str, value: &Value) -> Result<(), FieldError> {
+    let has = |field: &str| value.get(field).is_some();
+    if !has("material") {
+        return Ok(());
+    }
+    for (field, what) in [("springs", "stiffness"), ("mass", "mass (density × area)")] {
+        if has(field) {
+            return Err(FieldError::new(
+                format!("{pointer}/{field}"),
+                format!("give `material` or `{field}`, not both: the material sets the body's {what}"),
+            ));
+        }
+    }
+    Ok(())
 }
 
 /// Deserializes `value`, placing any error by JSON Pointer below `base`.

@@ -87,7 +87,7 @@ fn each_bad_field_is_named_by_its_pointer() {
         (with("/bodies/0", json!({"type": "chain", "count": 1})), &["/bodies/0/count"]),
         (with("/bodies/0", json!({"type": "chain", "pin": [10]})), &["/bodies/0/pin/0"]),
         (
-            with("/bodies/0", json!({"type": "chain", "spring": {"k": 1, "rest_length": 0}})),
+            with("/bodies/0", json!({"type": "chain", "spring": {"k": 1, "rest_length": -1}})),
             &["/bodies/0/spring/rest_length"],
         ),
         (with("/bodies/0", json!({"type": "lattice", "resolution": [2, 2, 1]})), &["/bodies/0/resolution/2"]),

@@ -2,6 +2,7 @@
 
 use serde::Deserialize;
 
+use super::fabrics::FabricSpec;
 use super::whole;
 
 /// A scene: the bodies, the forces on them, how to integrate and what to record.
@@ -204,7 +205,9 @@ impl Body {
             Self::Cloth(c) => {
                 let (nx, ny) = (c.resolution[0] as u64, c.resolution[1] as u64);
                 let grid = |di: u64, dj: u64| pairs(nx, di).saturating_mul(pairs(ny, dj));
-                [grid(1, 0), grid(0, 1), grid(1, 1), grid(1, 1), grid(2, 0), grid(0, 2)]
+                // A material's cloth bends by hinges, without the springs two apart.
+                let bending = if c.material.is_some() { [0, 0] } else { [grid(2, 0), grid(0, 2)] };
+                [grid(1, 0), grid(0, 1), grid(1, 1), grid(1, 1), bending[0], bending[1]]
                     .into_iter()
                     .fold(0, u64::saturating_add)
             }
@@ -269,6 +272,51 @@ impl Default for MeshSprings {
     }
 }
 
+/// How a cloth or mesh resists bending.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum BendingModelName {
+    /// A hinge on every interior edge, from the angle between its two triangles; its rigidity is
+    /// the material's `bending`.
+    Dihedral,
+    /// Springs between particles two apart, of stiffness `springs.bending.k`.
+    Springs,
+}
+
+impl BodyMaterial for ClothSpec {
+    fn material(&self) -> Option<&FabricSpec> {
+        self.material.as_ref()
+    }
+    fn bending_model(&self) -> Option<BendingModelName> {
+        self.bending_model
+    }
+}
+
+impl BodyMaterial for MeshSpec {
+    fn material(&self) -> Option<&FabricSpec> {
+        self.material.as_ref()
+    }
+    fn bending_model(&self) -> Option<BendingModelName> {
+        self.bending_model
+    }
+}
+
+/// What a cloth and a mesh share about their material.
+pub trait BodyMaterial {
+    /// The `material`, if given.
+    fn material(&self) -> Option<&FabricSpec>;
+    /// The `bending_model`, if given.
+    fn bending_model(&self) -> Option<BendingModelName>;
+    /// The bending model in force: the given one, else `dihedral` with a material and `springs`
+    /// without.
+    fn bending(&self) -> BendingModelName {
+        self.bending_model().unwrap_or(match self.material() {
+            Some(_) => BendingModelName::Dihedral,
+            None => BendingModelName::Springs,
+        })
+    }
+}
+
 /// The plane a cloth starts in.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -315,8 +363,12 @@ pub struct ClothSpec {
     pub mass: f64,
     /// Initial velocity of every particle, in m/s (default 0).
     pub velocity: [f64; 3],
-    /// Spring families.
+    /// Spring families (not with `material`).
     pub springs: GridSprings,
+    /// The fabric, in physical units, in place of `springs` and `mass`.
+    pub material: Option<FabricSpec>,
+    /// How the body resists bending (default `dihedral` with `material`, `springs` without).
+    pub bending_model: Option<BendingModelName>,
     /// Pinned particles as `[i, j]`.
     #[serde(deserialize_with = "whole::list_of_arrays")]
     pub pin: Vec<[usize; 2]>,
@@ -335,6 +387,8 @@ impl Default for ClothSpec {
             mass: 0.5,
             velocity: [0.0; 3],
             springs: GridSprings::default(),
+            material: None,
+            bending_model: None,
             pin: Vec::new(),
         }
     }
@@ -456,9 +510,15 @@ pub struct MeshSpec {
     /// Initial velocity, in m/s (default 0).
     #[serde(default)]
     pub velocity: [f64; 3],
-    /// Spring families.
+    /// Spring families (not with `material`).
     #[serde(default)]
     pub springs: MeshSprings,
+    /// The fabric, in physical units, in place of `springs` and `mass`.
+    #[serde(default)]
+    pub material: Option<FabricSpec>,
+    /// How the body resists bending (default `dihedral` with `material`, `springs` without).
+    #[serde(default)]
+    pub bending_model: Option<BendingModelName>,
     /// Pinned vertex indices.
     #[serde(default, deserialize_with = "whole::list")]
     pub pin: Vec<usize>,

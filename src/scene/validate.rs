@@ -2,9 +2,10 @@
 //! indices in range.
 
 use super::error::FieldError;
+use super::fabrics::FabricSpec;
 use super::types::{
-    Body, ClothShape, ColliderSpec, Field, Format, FrameSelection, GridSprings, Output, Scene, SpringSpec,
-    WindSpec,
+    BendingModelName, Body, BodyMaterial, ClothShape, ColliderSpec, Field, Format, FrameSelection, GridSprings,
+    Output, Scene, SpringSpec, WindSpec,
 };
 
 /// Collects problems, each at its JSON Pointer.
@@ -101,6 +102,75 @@ impl Problems {
         self.spring(&format!("{pointer}/structural"), &springs.structural);
         self.spring(&format!("{pointer}/shear"), &springs.shear);
         self.spring(&format!("{pointer}/bending"), &springs.bending);
+    }
+
+    /// A material's own values; returns whether they are all in range.
+    fn fabric(&mut self, pointer: &str, f: &FabricSpec) -> bool {
+        let before = self.0.len();
+        {
+            self.positive(&format!("{pointer}/density"), f.density);
+            self.positive(&format!("{pointer}/stretch"), f.stretch);
+            self.positive(&format!("{pointer}/shear"), f.shear);
+            self.positive(&format!("{pointer}/bending"), f.bending);
+            self.non_negative(&format!("{pointer}/damping"), f.damping);
+            if self.0.len() == before && f.shear >= f.stretch {
+                self.add(
+                    format!("{pointer}/shear"),
+                    format!(
+                        "must be below `stretch` ({}), got {}: the diagonal springs that carry shear \
+                         also resist stretch",
+                        f.stretch, f.shear
+                    ),
+                );
+            }
+        }
+        self.0.len() == before
+    }
+
+    /// The constants a material gives a grid of spacings `[a, b]`: each must be in
+    /// [`POSITIVE_RANGE`] (a damping may be 0), so that no size and resolution make them
+    /// overflow or vanish.
+    fn fabric_grid(&mut self, pointer: &str, fabric: &FabricSpec, [a, b]: [f64; 2]) {
+        let solver_fabric = fabric.fabric();
+        let stiffness = solver_fabric.grid_stiffness(a, b);
+        let derived = [
+            ("spring stiffness (N/m)", stiffness.iter().copied().fold(f64::INFINITY, f64::min)),
+            ("spring stiffness (N/m)", stiffness.iter().copied().fold(0.0, f64::max)),
+            ("hinge stiffness (N/m)", fabric.bending / (a * b)),
+            ("particle mass (kg)", fabric.density * a * b / 4.0),
+            ("particle mass (kg)", fabric.density * a * b),
+        ];
+        let dampings = stiffness.map(|k| k * fabric.damping);
+        let (low, high) = POSITIVE_RANGE.into_inner();
+        for (what, value) in derived {
+            if !(value.is_finite() && POSITIVE_RANGE.contains(&value)) {
+                self.add(
+                    pointer,
+                    format!("with this size and resolution its {what} would be {value:e}, outside [{low:e}, {high:e}]"),
+                );
+                return;
+            }
+        }
+        if dampings.iter().any(|&d| !d.is_finite() || d > high) {
+            self.add(pointer, format!("with this size and resolution its damping would exceed {high:e}"));
+        }
+    }
+
+    /// `bending_model` against the body's `material`: hinges take their rigidity from the
+    /// material, and a material's rigidity has no spring equivalent.
+    fn bending_model(&mut self, at: &str, body: &impl BodyMaterial) {
+        match (body.bending_model(), body.material()) {
+            (Some(BendingModelName::Springs), Some(_)) => self.add(
+                format!("{at}/bending_model"),
+                "`springs` cannot carry a material's bending rigidity (a spring's energy is quartic \
+                 in the bend angle): use `dihedral`, the default with `material`",
+            ),
+            (Some(BendingModelName::Dihedral), None) => self.add(
+                format!("{at}/bending_model"),
+                "`dihedral` takes its rigidity from `material`, which this body does not have",
+            ),
+            _ => {}
+        }
     }
 
     fn pins<const N: usize>(&mut self, pointer: &str, pins: &[[usize; N]], extent: [usize; N]) {
@@ -251,6 +321,21 @@ fn body_problems(p: &mut Problems, at: &str, body: &Body) {
             p.positive(&field("mass"), c.mass);
             p.vector(&field("velocity"), &c.velocity);
             p.grid_springs(&field("springs"), &c.springs);
+            if let Some(fabric) = &c.material
+                && p.fabric(&field("material"), fabric)
+            {
+                match c.shape {
+                    ClothShape::Rectangle => {
+                        let spacing = [0, 1].map(|a| c.size[a] / (c.resolution[a].max(2) - 1) as f64);
+                        p.fabric_grid(&field("material"), fabric, spacing);
+                    }
+                    ClothShape::Disk if p.0.iter().all(|e| !e.pointer.starts_with(at)) => {
+                        mesh_fabric_range(p, &field("material"), c.solver_disk().mesh(), fabric);
+                    }
+                    ClothShape::Disk => {}
+                }
+            }
+            p.bending_model(at, c);
         }
         Body::Chain(c) => {
             p.vector(&field("start"), &c.start);
@@ -263,7 +348,10 @@ fn body_problems(p: &mut Problems, at: &str, body: &Body) {
             p.positive(&field("spring/k"), c.spring.k);
             p.non_negative(&field("spring/damping"), c.spring.damping);
             if let Some(rest) = c.spring.rest_length {
-                p.length(&field("spring/rest_length"), rest);
+                // Zero is a valid rest length: a spring that pulls its ends together.
+                if rest != 0.0 {
+                    p.length(&field("spring/rest_length"), rest);
+                }
             }
             p.indices(&field("pin"), &c.pin, c.count, "particle");
         }
@@ -302,6 +390,10 @@ fn mesh_problems(p: &mut Problems, at: &str, m: &super::types::MeshSpec) {
     p.spring(&field("springs/structural"), &m.springs.structural);
     p.spring(&field("springs/bending"), &m.springs.bending);
     p.indices(&field("pin"), &m.pin, vertex_count, "vertex");
+    if let Some(material) = &m.material {
+        p.fabric(&field("material"), material);
+    }
+    p.bending_model(at, m);
     let well_formed = p.0.iter().all(|e| !e.pointer.starts_with(at));
     if !well_formed {
         return;
@@ -317,6 +409,50 @@ fn mesh_problems(p: &mut Problems, at: &str, m: &super::types::MeshSpec) {
         p.add(
             field("vertices"),
             format!("vertex {v} is on no triangle of positive area, so it would have no mass"),
+        );
+        return;
+    }
+    if let Some(fabric) = &m.material
+        && p.0.iter().all(|e| !e.pointer.starts_with(at))
+    {
+        let mesh = crate::solver::Mesh {
+            vertices: m.vertex_positions(),
+            triangles: m.triangle_indices(),
+            mass: 1.0,
+            velocity: glam::DVec3::ZERO,
+            structural: crate::solver::SpringParams { stiffness: 1.0, damping: 0.0 },
+            bending: crate::solver::SpringParams { stiffness: 1.0, damping: 0.0 },
+            pins: Vec::new(),
+        };
+        mesh_fabric_range(p, &field("material"), mesh, fabric);
+    }
+}
+
+/// A mesh's material makes constants from its triangles' shapes: each spring's stiffness and
+/// damping, each hinge's stiffness times its largest squared weight (a sliver triangle's
+/// cotangents are large) and each vertex's mass must stay in [`POSITIVE_RANGE`], so that no valid
+/// scene overflows or vanishes in single precision.
+fn mesh_fabric_range(p: &mut Problems, pointer: &str, mesh: crate::solver::Mesh, fabric: &FabricSpec) {
+    let mut model = crate::solver::Model::default();
+    model.add_fabric_mesh(&mesh, &fabric.fabric());
+    let in_range = |v: f64| v.is_finite() && POSITIVE_RANGE.contains(&v);
+    let at_most = |v: f64| v.is_finite() && v <= *POSITIVE_RANGE.end();
+    let springs = model.springs.iter().all(|s| in_range(s.stiffness) && at_most(s.damping));
+    let hinges = model.bending.iter().all(|h| {
+        let largest = h.weights.iter().fold(0.0f64, |w, k| w.max(k.abs()));
+        in_range(h.stiffness)
+            && at_most(h.stiffness * largest * largest)
+            && at_most(h.damping * largest * largest)
+    });
+    let masses = model.masses.iter().all(|&mass| in_range(mass));
+    if !(springs && hinges && masses) {
+        let (low, high) = POSITIVE_RANGE.into_inner();
+        p.add(
+            pointer,
+            format!(
+                "with these triangles a spring's stiffness, a hinge's or a vertex's mass would leave \
+                 [{low:e}, {high:e}]"
+            ),
         );
     }
 }

@@ -130,9 +130,18 @@ pub struct Mesh {
     pub pins: Vec<usize>,
 }
 
+/// How a grid cloth's mass is spread over its particles.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) enum ClothMass {
+    /// This total, the same for every particle.
+    Even(f64),
+    /// This density, in kg/m², each particle carrying the area of its quarter cells.
+    ByArea(f64),
+}
+
 /// Each spring family of a cloth as the pairs of grid offsets `[ai, aj, bi, bj]` it joins:
 /// particle `(i + ai, j + aj)` to `(i + bi, j + bj)`.
-const CLOTH_STENCIL: [(SpringKind, [[usize; 4]; 2]); 3] = [
+pub(crate) const CLOTH_STENCIL: [(SpringKind, [[usize; 4]; 2]); 3] = [
     (SpringKind::Structural, [[0, 0, 1, 0], [0, 0, 0, 1]]),
     (SpringKind::Shear, [[0, 0, 1, 1], [1, 0, 0, 1]]),
     (SpringKind::Bending, [[0, 0, 2, 0], [0, 0, 0, 2]]),
@@ -153,6 +162,26 @@ pub fn vertex_areas(vertices: &[DVec3], triangles: &[[usize; 3]]) -> Vec<f64> {
 impl Model {
     /// Adds a cloth; particle `(i, j)` gets index `offset + j * nx + i`.
     pub fn add_cloth(&mut self, cloth: &Cloth) -> Range<usize> {
+        let families = CLOTH_STENCIL.iter().flat_map(|&(kind, offsets)| {
+            let params = match kind {
+                SpringKind::Structural => cloth.structural,
+                SpringKind::Shear => cloth.shear,
+                SpringKind::Bending => cloth.bending,
+            };
+            offsets.map(|offset| (kind, offset, params))
+        });
+        self.add_grid_cloth(cloth, ClothMass::Even(cloth.mass), &families.collect::<Vec<_>>())
+    }
+
+    /// Adds a cloth of mass `mass` whose springs are `families`, each a kind, its stencil
+    /// offsets `[ai, aj, bi, bj]` and its parameters; the cloth's own spring parameters and mass
+    /// are not read.
+    pub(crate) fn add_grid_cloth(
+        &mut self,
+        cloth: &Cloth,
+        mass: ClothMass,
+        families: &[(SpringKind, [usize; 4], SpringParams)],
+    ) -> Range<usize> {
         let [nx, ny] = cloth.resolution;
         let [sx, sy] = cloth.size;
         let (di, dj) = (sx / (nx - 1) as f64, sy / (ny - 1) as f64);
@@ -166,33 +195,33 @@ impl Model {
                 }
         };
         let positions = (0..ny).flat_map(|j| (0..nx).map(move |i| (i, j))).map(|(i, j)| place(i, j));
-        let per_particle = cloth.mass / (nx * ny) as f64;
-        let range = self.add_particles(positions, |_| per_particle, cloth.velocity);
+        let mass_of = |p: usize| match mass {
+            ClothMass::Even(total) => total / (nx * ny) as f64,
+            ClothMass::ByArea(density) => {
+                // A particle carries the quarter of each grid cell it is a corner of.
+                let edge = |k: usize, n: usize| if k == 0 || k == n - 1 { 0.5 } else { 1.0 };
+                density * di * dj * edge(p % nx, nx) * edge(p / nx, ny)
+            }
+        };
+        let range = self.add_particles(positions, mass_of, cloth.velocity);
         let at = |i: usize, j: usize| range.start + j * nx + i;
 
         let first_spring = self.springs.len();
-        for (kind, offsets) in CLOTH_STENCIL {
-            let params = match kind {
-                SpringKind::Structural => cloth.structural,
-                SpringKind::Shear => cloth.shear,
-                SpringKind::Bending => cloth.bending,
-            };
-            for [ai, aj, bi, bj] in offsets {
-                let (reach_i, reach_j) = (ai.max(bi), aj.max(bj));
-                // One rest length per family, so that the stencil pass can share it: the grid is
-                // affine, so every spring of a family has this length up to rounding.
-                let rest = place(ai, aj).distance(place(bi, bj));
-                for j in 0..ny.saturating_sub(reach_j) {
-                    for i in 0..nx.saturating_sub(reach_i) {
-                        self.connect_with_rest(at(i + ai, j + aj), at(i + bi, j + bj), rest, params, kind);
-                    }
+        for &(kind, [ai, aj, bi, bj], params) in families {
+            let (reach_i, reach_j) = (ai.max(bi), aj.max(bj));
+            // One rest length per family, so that the stencil pass can share it: the grid is
+            // affine, so every spring of a family has this length up to rounding.
+            let rest = place(ai, aj).distance(place(bi, bj));
+            for j in 0..ny.saturating_sub(reach_j) {
+                for i in 0..nx.saturating_sub(reach_i) {
+                    self.connect_with_rest(at(i + ai, j + aj), at(i + bi, j + bj), rest, params, kind);
                 }
             }
         }
         self.grids.push(SpringGrid {
             first_particle: range.start,
             resolution: [nx, ny],
-            stencil: CLOTH_STENCIL.iter().flat_map(|(_, offsets)| *offsets).collect(),
+            stencil: families.iter().map(|&(_, offsets, _)| offsets).collect(),
             springs: first_spring..self.springs.len(),
         });
         for j in 0..ny - 1 {

@@ -12,7 +12,7 @@ pub struct Energy {
     pub kinetic: f64,
     /// `-Σ m g·x`: zero at the origin, growing with height against gravity.
     pub gravitational: f64,
-    /// `½ Σ k (l - L)²` over the springs.
+    /// The elastic energy: `½ Σ k (l - L)²` over the springs, plus the bending hinges'.
     pub spring: f64,
 }
 
@@ -47,6 +47,7 @@ pub fn energy<T: Real>(dynamics: &Dynamics<T>, state: &State<T>) -> Energy {
     Energy {
         kinetic: kinetic_energy(dynamics, state),
         gravitational,
-        spring: springs::energy(&dynamics.springs, &state.positions),
+        spring: springs::energy(&dynamics.springs, &state.positions)
+            + dynamics.bending.as_ref().map_or(0.0, |h| h.energy(&state.positions)),
     }
 }

@@ -54,6 +54,23 @@ pub struct Model {
     /// The bodies whose springs follow a grid stencil, which a simulation evaluates without
     /// the spring list.
     pub grids: Vec<SpringGrid>,
+    /// Dihedral bending elements, one per interior edge of a body that bends by hinges.
+    pub bending: Vec<BendingElement>,
+}
+
+/// A bending element on the edge `vertices[0]`–`vertices[1]` shared by the triangles whose far
+/// vertices are `vertices[2]` and `vertices[3]`: energy `½ stiffness |Σₖ weights[k] xₖ|²` (see
+/// [`hinges`](crate::solver::forces::bending)).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BendingElement {
+    /// The edge's two vertices, then the two far vertices.
+    pub vertices: [u32; 4],
+    /// The rest shape's cotangent weights (dimensionless; they sum to zero).
+    pub weights: [f64; 4],
+    /// In N/m: the bending rigidity over the two triangles' rest area.
+    pub stiffness: f64,
+    /// In N·s/m: the damping of the same mode.
+    pub damping: f64,
 }
 
 /// A rectangular block of particles whose springs a fixed stencil generates.

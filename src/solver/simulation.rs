@@ -1,7 +1,7 @@
 //! A compiled scene: the stages it needs, its state, and the step that advances it.
 //!
 //! A step runs, in a fixed order, only the stages the scene has: force accumulation (gravity,
-//! drag, springs, wind) and integration (the integrator evaluates the forces as often as it
+//! drag, springs, bending, wind) and integration (the integrator evaluates the forces as often as it
 //! needs, at the times it needs), then the strain limit, self-collision, the colliders, and the
 //! stability watch. Self-collision runs before the colliders so that its small pushes can never
 //! leave a particle inside a collider. When a stage after the integrator moved particles, the
@@ -30,10 +30,11 @@ use crate::solver::{normals, parallel};
 /// Every stage name a simulation or a run can report, in the order a step runs them: the
 /// forces, then the constraints and contacts. `normals` is also the per-frame normals a run's
 /// output asks for.
-pub const STAGE_NAMES: [&str; 11] = [
+pub const STAGE_NAMES: [&str; 12] = [
     "gravity",
     "drag",
     "springs",
+    "bending",
     "normals",
     "wind",
     "strain_limit",

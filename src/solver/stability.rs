@@ -4,7 +4,8 @@
 //! The bound is Gershgorin's on `M⁻¹K` with damping: with `ω̂² = maxᵢ 2 Σⱼ kᵢⱼ / mᵢ` and
 //! `ĉ = maxᵢ (drag + 2 Σⱼ cᵢⱼ / mᵢ)` over free particles, a damped oscillator of frequency up to
 //! `ω̂` and damping rate up to `ĉ` stays bounded under symplectic Euler for
-//! `h < 4 / (ĉ + √(ĉ² + 4ω̂²))`, which is `2/ω̂` without damping.
+//! `h < 4 / (ĉ + √(ĉ² + 4ω̂²))`, which is `2/ω̂` without damping. A bending hinge adds its row
+//! of `M⁻¹ c K Kᵀ` the same way.
 
 use crate::solver::model::Model;
 
@@ -18,6 +19,14 @@ pub fn stable_step(model: &Model, drag: f64) -> Option<f64> {
         for p in [s.i as usize, s.j as usize] {
             stiffness[p] += s.stiffness;
             damping[p] += s.damping;
+        }
+    }
+    // A hinge's row of `c K Kᵀ` sums to `c |Kᵢ| Σⱼ |Kⱼ|`; halved, as the springs' `2 Σ k` doubles.
+    for h in &model.bending {
+        let total: f64 = h.weights.iter().map(|w| w.abs()).sum();
+        for (&p, w) in h.vertices.iter().zip(h.weights) {
+            stiffness[p as usize] += 0.5 * h.stiffness * w.abs() * total;
+            damping[p as usize] += 0.5 * h.damping * w.abs() * total;
         }
     }
     let free = (0..n).filter(|&p| !model.pinned[p]);

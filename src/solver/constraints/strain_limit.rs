@@ -83,7 +83,8 @@ impl<T: Real> StrainLimit<T> {
                 let longest = s.rest_length * self.stretch;
                 let d = x.get(j) - x.get(i);
                 let length = d.length();
-                if !(length > longest) || w == T::ZERO {
+                // A zero-length spring has no strain to limit.
+                if !(length > longest) || w == T::ZERO || longest == T::ZERO {
                     continue;
                 }
                 worst = worst.max((length - longest) / longest);

@@ -39,17 +39,25 @@ pub(crate) struct BodyForce<'a, T> {
     pub(crate) masses: &'a [T],
     pub(crate) gravity: [T; 3],
     pub(crate) drag: T,
+    /// A force over the body's particles to add, computed before the pass (bending's).
+    pub(crate) extra: Option<[&'a [T]; 3]>,
 }
 
 impl<T: Real> BodyForce<'_, T> {
-    /// `(g - drag v) m` for each particle of `row` (numbered within the band).
+    /// `(g - drag v) m` for each particle of `row` (numbered within the band), plus the extra
+    /// force if any.
     #[inline]
     pub(crate) fn start(&self, row: usize, force: [&mut [T]; 3]) {
         let cells = self.offset + row * self.nx..self.offset + (row + 1) * self.nx;
         let masses = &self.masses[cells.clone()];
-        for ((f, v), g) in force.into_iter().zip(self.v).zip(self.gravity) {
+        for (axis, ((f, v), g)) in force.into_iter().zip(self.v).zip(self.gravity).enumerate() {
             for ((f, &v), &m) in f.iter_mut().zip(&v[cells.clone()]).zip(masses) {
                 *f = (g - v * self.drag) * m;
+            }
+            if let Some(extra) = self.extra {
+                for (f, &e) in f.iter_mut().zip(&extra[axis][cells.clone()]) {
+                    *f += e;
+                }
             }
         }
     }

@@ -1,10 +1,11 @@
-//! What accelerates the particles: their masses, gravity, drag, springs and wind.
+//! What accelerates the particles: their masses, gravity, drag, springs, bending and wind.
 //!
 //! [`Dynamics`] is everything a force evaluation needs besides the state, so that every
 //! integrator can evaluate `a(x, v, t)` on any trial state (RK4 evaluates four per step).
 //! A force that a scene does not have is `None` and costs nothing. Wind keeps scratch (vertex
 //! normals), so an evaluation takes `&mut self`.
 
+use super::bending::BendingElements;
 use super::body;
 use super::grid::{self, BodyTerms, GridSprings};
 use super::spring_runs::SpringRuns;
@@ -31,6 +32,10 @@ pub struct Dynamics<T> {
     grids: Vec<GridSprings<T>>,
     /// The springs no grid covers, sorted into runs.
     listed_springs: SpringRuns<T>,
+    /// Dihedral bending, when a body bends by hinges.
+    pub(crate) bending: Option<BendingElements<T>>,
+    /// The bending forces a fused pass starts its rows from (empty without bending).
+    bending_forces: Vectors<T>,
     /// Wind on the surface triangles, when the scene has any.
     pub(crate) wind: Option<Wind<T>>,
     /// The model's grid records, for solvers that exploit the grid structure.
@@ -75,6 +80,8 @@ impl<T: Real> Dynamics<T> {
             springs,
             grids,
             listed_springs,
+            bending: BendingElements::new(&model.bending),
+            bending_forces: Vectors::zeros(if model.bending.is_empty() { 0 } else { model.particle_count() }),
             wind: None,
             spring_grids: model.grids.clone(),
         }
@@ -92,6 +99,7 @@ impl<T: Real> Dynamics<T> {
             self.gravity.map(|_| "gravity"),
             self.drag.map(|_| "drag"),
             (!self.springs.is_empty()).then_some("springs"),
+            self.bending.as_ref().map(|_| "bending"),
         ]
         .into_iter()
         .flatten()
@@ -106,6 +114,9 @@ impl<T: Real> Dynamics<T> {
             grid.add_forces(x, v, forces);
         }
         self.listed_springs.add_forces(x, v, forces);
+        if let Some(hinges) = &self.bending {
+            hinges.add_forces(x, v, forces);
+        }
         if let Some(wind) = &mut self.wind {
             wind.add_forces(x, v, t, forces);
         }
@@ -113,7 +124,7 @@ impl<T: Real> Dynamics<T> {
 
     /// Whether this scene's passes can fuse the forces with what an integrator does with them
     /// (see [`fused_grid`](Self::fused_grid)): one grid body that is every particle, and no other
-    /// force than gravity, drag and its springs.
+    /// force than gravity, drag, its springs and bending.
     pub(crate) fn has_fused_passes(&self) -> bool {
         matches!(self.grids.as_slice(), [grid] if grid.particles() == (0..self.masses.len()))
             && self.wind.is_none()
@@ -124,16 +135,26 @@ impl<T: Real> Dynamics<T> {
     /// particles' masses, gravity and drag as the grid's passes take them, so that an integrator
     /// can run its update inside the grid's force pass
     /// ([`fused_symplectic`](crate::solver::integrators::fused_symplectic), RK4's stages);
-    /// `None` for any other scene.
-    pub(crate) fn fused_grid(&mut self) -> Option<(&mut GridSprings<T>, BodyTerms<'_, T>)> {
+    /// `None` for any other scene. The bending forces at `(x, v)`, when the scene bends by
+    /// elements, are evaluated first, in a pass of their own, for the rows to start from.
+    pub(crate) fn fused_grid(
+        &mut self,
+        x: &Vectors<T>,
+        v: &Vectors<T>,
+    ) -> Option<(&mut GridSprings<T>, BodyTerms<'_, T>)> {
         if !self.has_fused_passes() {
             return None;
+        }
+        if let Some(bending) = &self.bending {
+            self.bending_forces.fill(Vec3::ZERO);
+            bending.add_forces(x, v, &mut self.bending_forces);
         }
         let terms = BodyTerms {
             masses: &self.masses,
             inverse_masses: &self.inverse_masses,
             gravity: self.gravity.unwrap_or(Vec3::ZERO),
             drag: self.drag.unwrap_or(T::ZERO),
+            extra: self.bending.as_ref().map(|_| self.bending_forces.axes()),
         };
         Some((&mut self.grids[0], terms))
     }
@@ -141,7 +162,7 @@ impl<T: Real> Dynamics<T> {
     /// Acceleration of each particle at state `(x, v)` and time `t`, written into
     /// `accelerations`; zero for pinned particles.
     pub fn accelerations(&mut self, x: &Vectors<T>, v: &Vectors<T>, t: f64, accelerations: &mut Vectors<T>) {
-        if let Some((grid, inputs)) = self.fused_grid() {
+        if let Some((grid, inputs)) = self.fused_grid(x, v) {
             // One grid and nothing else: forces and division in one pass over the rows.
             grid.accelerations(&inputs, x, v, accelerations);
             return;

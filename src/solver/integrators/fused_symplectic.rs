@@ -30,7 +30,7 @@ pub(crate) fn step<T: Real>(
     next: &mut State<T>,
     h: T,
 ) -> Option<(T, T)> {
-    let (grid, inputs) = dynamics.fused_grid()?;
+    let (grid, inputs) = dynamics.fused_grid(&state.positions, &state.velocities)?;
     Some(grid.symplectic_step(&inputs, h, state, next))
 }
 
@@ -47,6 +47,7 @@ impl<T: Real> GridSprings<T> {
         next: &mut State<T>,
     ) -> (T, T) {
         let range = self.particles();
+        let range_of_body = range.clone();
         let (x, v) = (state.positions.range(range.clone()), state.velocities.range(range.clone()));
         let masses = &inputs.masses[range.clone()];
         let inverse_masses = &inputs.inverse_masses[range.clone()];
@@ -65,6 +66,7 @@ impl<T: Real> GridSprings<T> {
                     inverse_masses,
                     gravity: inputs.gravity.to_array(),
                     drag: inputs.drag,
+                    extra: inputs.extra.map(|f| f.map(|axis| &axis[range_of_body.clone()])),
                     h,
                     positions: [px, py, pz],
                     velocities: [vx, vy, vz],
@@ -90,6 +92,8 @@ struct SymplecticUpdate<'a, T> {
     inverse_masses: &'a [T],
     gravity: [T; 3],
     drag: T,
+    /// Bending forces over the body's particles, if any.
+    extra: Option<[&'a [T]; 3]>,
     h: T,
     /// The band's new positions and velocities.
     positions: [&'a mut [T]; 3],
@@ -110,6 +114,7 @@ impl<T: Real> RowSink<T> for SymplecticUpdate<'_, T> {
             masses: self.masses,
             gravity: self.gravity,
             drag: self.drag,
+            extra: self.extra,
         };
         body.start(row, force);
     }

@@ -106,7 +106,7 @@ impl<T: Real> Pass<'_, T> {
     ) {
         let Some(forces) = self.forces.as_mut() else {
             // The scene's passes fuse: the stage's update runs row by row inside the force pass.
-            if let Some((grid, inputs)) = self.dynamics.fused_grid() {
+            if let Some((grid, inputs)) = self.dynamics.fused_grid(x, v) {
                 grid.accelerations_by_rows(&inputs, x, v, outputs, update);
             }
             return;

@@ -44,12 +44,14 @@ pub(crate) struct GridSprings<T> {
 }
 
 /// What the body forces and the accelerations need from outside the grid: the particles'
-/// masses, gravity and the drag rate.
+/// masses, gravity, the drag rate and any force computed before the pass.
 pub(crate) struct BodyTerms<'a, T> {
     pub masses: &'a [T],
     pub inverse_masses: &'a [T],
     pub gravity: Vec3<T>,
     pub drag: T,
+    /// Forces over every particle the rows start from besides gravity and drag (bending's).
+    pub extra: Option<[&'a [T]; 3]>,
 }
 
 impl<T: Real> GridSprings<T> {
@@ -123,7 +125,8 @@ impl<T: Real> GridSprings<T> {
             in_bands(bands, nx, outputs, &|band, outputs| {
                 let offset = band.rows.start * nx;
                 let gravity = inputs.gravity.to_array();
-                let body = BodyForce { offset, nx, v, masses, gravity, drag: inputs.drag };
+                let extra = inputs.extra.map(|f| f.map(|axis| &axis[range.clone()]));
+                let body = BodyForce { offset, nx, v, masses, gravity, drag: inputs.drag, extra };
                 let sink = &mut Accelerations { body, first, inverse_masses, outputs, update };
                 band.sweep(layout, x, v, sink);
             })

@@ -88,7 +88,7 @@ fn masses(n: usize) -> (Vec<f64>, Vec<f64>) {
 
 /// Gravity and a drag of 0.3 s⁻¹ on particles of `masses`.
 fn body_terms<'a>(masses: &'a [f64], inverse_masses: &'a [f64]) -> BodyTerms<'a, f64> {
-    BodyTerms { masses, inverse_masses, gravity: Vec3::new(0.0, -9.81, 0.0), drag: 0.3 }
+    BodyTerms { masses, inverse_masses, gravity: Vec3::new(0.0, -9.81, 0.0), drag: 0.3, extra: None }
 }
 
 #[test]

@@ -21,6 +21,7 @@ use rayon::prelude::*;
 use super::grid_operator::{Family, Field, GridOperator, RightHandSide, zero_field};
 use super::multigrid::Multigrid;
 use super::{SolveOutcome, StepInput, dot_slices};
+use crate::solver::forces::bending::BendingElements;
 use crate::solver::forces::dynamics::Dynamics;
 use crate::solver::integrators::Interrupted;
 use crate::solver::interrupt::Interrupt;
@@ -51,6 +52,10 @@ pub(crate) struct GridSolver<T> {
     product: Field<T>,
     /// The sums of the pieces of a dot product, three axes of `⌈n / PIECE⌉`.
     pieces: Vec<f64>,
+    /// Bending hinges, whose constant block `h D + h² C` is added to every product.
+    bending: Option<BendingElements<T>>,
+    /// The current step.
+    h: T,
 }
 
 impl<T: Real> GridSolver<T> {
@@ -134,6 +139,8 @@ impl<T: Real> GridSolver<T> {
             preconditioned: zero_field(n),
             product: zero_field(n),
             pieces: vec![0.0; 3 * n.div_ceil(PIECE)],
+            bending: dynamics.bending.clone(),
+            h: T::ZERO,
         })
     }
 
@@ -185,6 +192,10 @@ impl<T: Real> GridSolver<T> {
             None => shared(self.multigrid.fine_mut()),
         };
         system.assemble(input.positions, &self.mass, &self.families, T::ONE, h, Some(rhs));
+        self.h = h;
+        if let Some(hinges) = &self.bending {
+            hinges.add_velocity_term(h, input.velocities.arrays(), self.rhs.arrays_mut());
+        }
         let round = |value: T| value.to_f64() as f32;
         self.multigrid.assemble(self.system.as_ref(), input.positions, round(h), round(input.drag));
         zero_pinned(&mut self.rhs, &self.pinned);
@@ -214,6 +225,11 @@ impl<T: Real> GridSolver<T> {
         }
         // r = b - A x0 from the previous step's solution.
         system(&self.system, &self.multigrid).residual(&self.rhs, &self.delta_v, &mut self.residual);
+        if let Some(hinges) = &self.bending {
+            let (a, b) = (T::ZERO - self.h * self.h, T::ZERO - self.h);
+            hinges.add_product(a, b, self.delta_v.arrays(), self.residual.arrays_mut());
+            zero_pinned(&mut self.residual, &self.pinned);
+        }
         let target = tolerance.to_f64() * rhs_norm;
         let mut residual_norm = dot_pieces(&self.residual, &self.residual, pieces, parallel).sqrt();
         let mut iterations = 0;
@@ -240,6 +256,10 @@ impl<T: Real> GridSolver<T> {
             }
             rz = rz_next;
             system(&self.system, &self.multigrid).apply(&self.search, &mut self.product);
+            if let Some(hinges) = &self.bending {
+                hinges.add_product(self.h * self.h, self.h, self.search.arrays(), self.product.arrays_mut());
+                zero_pinned(&mut self.product, &self.pinned);
+            }
             let curvature = dot_pieces(&self.search, &self.product, pieces, parallel);
             if curvature <= 0.0 || !curvature.is_finite() {
                 break;

@@ -4,7 +4,8 @@
 //! This is the general path: chains, lattices, meshes, several bodies, or a cloth joined to
 //! other springs. Each spring's block `S = h D + h² K` is built once per step and the product
 //! `A x = M x + Σ_s ±S (x_i - x_j)` streams through the spring list; the preconditioner is the
-//! inverse of each particle's diagonal block.
+//! inverse of each particle's diagonal block. Bending hinges add their constant
+//! `h D + h² C` (see [`hinges`](crate::solver::forces::bending)) to the product and its diagonal.
 
 use super::grid_operator::Field;
 use super::{SolveOutcome, StepInput};
@@ -35,6 +36,10 @@ pub(crate) struct SpringListSolver<T> {
     search: Vec<Vec3<T>>,
     preconditioned: Vec<Vec3<T>>,
     product: Vec<Vec3<T>>,
+    /// The step, for the hinges' part of the product.
+    h: T,
+    /// Per particle: the hinges' part of the diagonal (the same on each axis).
+    hinge_diagonal: Vec<T>,
 }
 
 impl<T: Real> SpringListSolver<T> {
@@ -56,6 +61,8 @@ impl<T: Real> SpringListSolver<T> {
             search: zeros(),
             preconditioned: zeros(),
             product: zeros(),
+            h: T::ZERO,
+            hinge_diagonal: vec![T::ZERO; if dynamics.bending.is_some() { n } else { 0 }],
         }
     }
 
@@ -109,6 +116,17 @@ impl<T: Real> SpringListSolver<T> {
             self.preconditioner[i] += *block;
             self.preconditioner[j] += *block;
         }
+        self.h = h;
+        if let Some(hinges) = &dynamics.bending {
+            hinges.add_product_points(T::ZERO, h2, v, &mut self.rhs, true);
+            let mut diagonal = std::mem::take(&mut self.hinge_diagonal);
+            diagonal.fill(T::ZERO);
+            hinges.add_diagonal(h2, h, &mut diagonal);
+            for (block, &d) in self.preconditioner.iter_mut().zip(&diagonal) {
+                *block += Sym3::identity() * d;
+            }
+            self.hinge_diagonal = diagonal;
+        }
         for p in 0..x.len() {
             self.preconditioner[p] = self.preconditioner[p].inverse();
             self.rhs[p] *= self.free[p];
@@ -126,6 +144,9 @@ impl<T: Real> SpringListSolver<T> {
             let d = block.apply(self.search[i] - self.search[j]);
             self.product[i] += d;
             self.product[j] -= d;
+        }
+        if let Some(hinges) = &dynamics.bending {
+            hinges.add_product_points(self.h * self.h, self.h, &self.search, &mut self.product, false);
         }
         for (q, &f) in self.product.iter_mut().zip(&self.free) {
             *q *= f;
