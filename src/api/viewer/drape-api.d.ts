@@ -636,6 +636,27 @@ export interface components {
              */
             bending: components["schemas"]["SpringSpec"];
         };
+        /** @description A fabric in physical units, in place of `springs` and `mass` (either beside it is refused with 422): the body's mass is `density` times its area, its springs and bending elements follow from the values and the rest shape (`docs/materials.md`). `shear` must be below `stretch`. */
+        Material: {
+            /** @description Mass per area, in kg/m². */
+            density: number;
+            /** @description Membrane stiffness in uniaxial stretch with the other direction held, in N/m. */
+            stretch: number;
+            /** @description Membrane shear stiffness, in N/m (below `stretch`). */
+            shear: number;
+            /** @description Bending rigidity per unit width, in N·m. */
+            bending: number;
+            /**
+             * @description Damping time constant, in s: every element's damping is this times its stiffness.
+             * @default 0.0001
+             */
+            damping: number;
+        };
+        /**
+         * @description How the body resists bending: `dihedral`, by bending elements of the material's rigidity (the default, and the only choice, with `material`), or `springs`, by springs two apart (the default, and the only choice, without).
+         * @enum {string}
+         */
+        BendingModel: "dihedral" | "springs";
         /** @description A sheet. A rectangle (the default) is a grid; particle `(i, j)` is index `j * nx + i`. A disk is triangulated in concentric rings: `resolution` `[n, n]` (both equal) puts `rings = floor(n / 2)` rings of `6r` particles around a centre particle; particle `k` of ring `r` is index `1 + 3r(r - 1) + k` (the centre is 0) and is pinned as `[r, k]`. A disk's edges are structural springs and the far vertices across each shared edge bending springs; it has no shear family. */
         Cloth: {
             /**
@@ -697,6 +718,8 @@ export interface components {
              */
             velocity: components["schemas"]["Vec3"];
             springs?: components["schemas"]["GridSprings"];
+            material?: components["schemas"]["Material"];
+            bending_model?: components["schemas"]["BendingModel"];
             /** @description Pinned particles as `[i, j]` (a disk's as `[ring, k]`). */
             pin?: number[][];
         };
@@ -747,7 +770,7 @@ export interface components {
                 k: number;
                 /** @default 0 */
                 damping: number;
-                /** @description Default: the initial spacing. */
+                /** @description Default: the initial spacing. 0 is a zero-length spring, whose force is `k (q - p)`. */
                 rest_length?: number;
             };
             /** @description Pinned particle indices. */
@@ -802,7 +825,8 @@ export interface components {
         };
         /**
          * @description A triangle mesh; edges become structural springs, opposite vertices of neighbouring
-         *     triangles bending springs. Its `vertices` and `triangles` are given inline or by `asset`,
+         *     triangles bending springs (with `material`, bending hinges on the interior edges). Its
+         *     `vertices` and `triangles` are given inline or by `asset`,
          *     an uploaded mesh (`POST /assets`), never both (422 at `asset`); an asset that is not
          *     stored is a 422 at `asset`. The limits count the asset's vertices and triangles. The
          *     command line (`drape run`, `drape sweep`) takes `file` instead, a path to an `.obj` or
@@ -851,6 +875,8 @@ export interface components {
                  */
                 bending: components["schemas"]["SpringSpec"];
             };
+            material?: components["schemas"]["Material"];
+            bending_model?: components["schemas"]["BendingModel"];
             /** @description Pinned vertex indices. */
             pin?: number[];
         } & ({
