@@ -14,7 +14,8 @@
 //! integrator and stage, stays under the estimate plus [`MEMORY_RESERVE`](crate::config::MEMORY_RESERVE).
 
 use crate::scene::{
-    Body, Compiled, ErrorEstimateName, Field, FrameSelection, IntegratorName, Precision, Scene,
+    Body, ColliderSpec, Compiled, ErrorEstimateName, Field, FrameSelection, IntegratorName, MeshColliderSpec,
+    Precision, Scene,
 };
 use crate::solver::{WindModel, candidate_pairs};
 
@@ -55,6 +56,13 @@ fn simulation_bytes_per_grid_spring(integrator: IntegratorName) -> u64 {
 const SIMULATION_BYTES_PER_LISTED_SPRING: u64 = 224;
 /// Bytes a collider costs: its scene document, its parsed and compiled forms and the stage's.
 const BYTES_PER_COLLIDER: u64 = 2048;
+/// Bytes a mesh collider's triangle costs: its scene numbers (parsed and compiled), its corners
+/// and normals in the hierarchy, the hierarchy's nodes, the pseudo-normals of a closed mesh,
+/// and the topology's hash maps while it is built.
+pub(super) const BYTES_PER_COLLIDER_TRIANGLE: u64 = 768;
+/// Bytes a mesh collider's vertex costs: its scene numbers (as JSON values, parsed and compiled),
+/// its entry in the map that joins vertices at one position, and its pseudo-normal.
+pub(super) const BYTES_PER_COLLIDER_VERTEX: u64 = 256;
 /// Bytes a self-collision candidate pair takes in the pair lists.
 pub const BYTES_PER_PAIR: u64 = 8;
 /// Bytes of the self-collision hash per particle (buckets at most a quarter full, the sorted
@@ -149,6 +157,13 @@ impl Cost {
             simulation_memory = simulation_memory.saturating_add(memory);
             stage("colliders", "/colliders".into(), per_step(tests), memory);
         }
+        for (index, collider) in scene.colliders.iter().enumerate() {
+            let ColliderSpec::Mesh(mesh) = collider else { continue };
+            let (work, memory) = mesh_collider(mesh, particles);
+            step_work = step_work.saturating_add(work);
+            simulation_memory = simulation_memory.saturating_add(memory);
+            stage("mesh", format!("/colliders/{index}/triangles"), per_step(work), memory);
+        }
         if let Some(wind) = &compiled.config.wind {
             let work = match wind.model {
                 WindModel::Viscous => triangles.saturating_add(particles),
@@ -221,6 +236,19 @@ impl Cost {
     pub fn largest(&self, measure: fn(&StageCost) -> u64) -> Option<&StageCost> {
         self.stages.iter().max_by_key(|s| measure(s))
     }
+}
+
+/// A mesh collider's work per step and memory: each particle walks the hierarchy twice (its
+/// path, then its nearest triangle), each walk counted as the tree's depth in node tests plus a
+/// leaf of triangles; the memory is the hierarchy and what building it holds.
+fn mesh_collider(mesh: &MeshColliderSpec, particles: u64) -> (u64, u64) {
+    let triangles = (mesh.triangles.len() / 3) as u64;
+    let depth = u64::from(triangles.max(1).ilog2()) + 1;
+    let per_particle = 2 * (depth + crate::solver::BVH_LEAF_SIZE as u64);
+    let memory = triangles
+        .saturating_mul(BYTES_PER_COLLIDER_TRIANGLE)
+        .saturating_add(((mesh.vertices.len() / 3) as u64).saturating_mul(BYTES_PER_COLLIDER_VERTEX));
+    (particles.saturating_mul(per_particle), memory)
 }
 
 /// The size field of the body with the most particles.

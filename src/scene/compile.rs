@@ -7,13 +7,17 @@
 //! takes a quarter of the frame interval, or that half-bound if it is larger. A scene with
 //! nothing that bounds the step (no springs, no drag) also takes a quarter of the frame interval.
 
+use std::sync::Arc;
+
 use glam::DVec3;
 
 use super::types::{
     Body, ColliderSpec, ErrorEstimateName, FrameSelection, IntegratorName, OrientationName, Output,
     Precision, Scene, SpringSpec, WindModelName, WindSpec,
 };
-use crate::solver::{self, Collider, IntegratorKind, IntegratorSettings, Model, Shape, SpringParams};
+use crate::solver::{
+    self, Collider, IntegratorKind, IntegratorSettings, Model, Shape, SpringParams, TriangleSurface,
+};
 
 /// Where a run's step came from.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -175,13 +179,14 @@ impl Scene {
 
 fn collider(spec: &ColliderSpec) -> Collider {
     let v = DVec3::from_array;
-    let shape = match *spec {
+    let shape = match spec {
         ColliderSpec::Plane(c) => Shape::Plane { point: v(c.point), normal: v(c.normal) },
         ColliderSpec::Sphere(c) => Shape::Sphere { center: v(c.center), radius: c.radius },
         ColliderSpec::Box(c) => Shape::Box { center: v(c.center), half_extents: v(c.half_extents) },
         ColliderSpec::Cylinder(c) => {
             Shape::Cylinder { center: v(c.center), radius: c.radius, height: c.height }
         }
+        ColliderSpec::Mesh(c) => Shape::Mesh { surface: Arc::new(c.surface()), thickness: c.thickness },
     };
     let (friction, restitution) = spec.surface();
     Collider { shape, friction, restitution }
@@ -255,6 +260,16 @@ fn add_body(model: &mut Model, body: &Body) -> std::ops::Range<usize> {
             bending: params(m.springs.bending),
             pins: m.pin.clone(),
         }),
+    }
+}
+
+impl super::types::MeshColliderSpec {
+    /// The triangles as the solver takes them (the indices are checked to fit).
+    pub fn surface(&self) -> TriangleSurface {
+        TriangleSurface {
+            vertices: self.vertices.chunks_exact(3).map(|c| DVec3::new(c[0], c[1], c[2])).collect(),
+            triangles: self.triangles.chunks_exact(3).map(|c| [c[0], c[1], c[2]].map(|i| i as u32)).collect(),
+        }
     }
 }
 

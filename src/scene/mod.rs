@@ -19,4 +19,6 @@ pub use error::{FieldError, SceneError};
 pub use types::*;
 
 #[cfg(test)]
+mod mesh_collider_tests;
+#[cfg(test)]
 mod tests;

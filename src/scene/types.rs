@@ -450,7 +450,7 @@ fn default_mesh_mass() -> f64 {
 
 /// A collider, by its `type`. Each has `friction` (Coulomb μ, at least 0; default 0.3) and
 /// `restitution` (in [0, 1]; default 0).
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub enum ColliderSpec {
     /// A plane; the side behind its normal is solid.
     Plane(PlaneSpec),
@@ -460,6 +460,8 @@ pub enum ColliderSpec {
     Box(BoxSpec),
     /// A solid cylinder with its axis along y (a round table).
     Cylinder(CylinderSpec),
+    /// A triangle mesh: a two-sided sheet, or a solid when closed.
+    Mesh(MeshColliderSpec),
 }
 
 impl ColliderSpec {
@@ -470,6 +472,7 @@ impl ColliderSpec {
             Self::Sphere(_) => "sphere",
             Self::Box(_) => "box",
             Self::Cylinder(_) => "cylinder",
+            Self::Mesh(_) => "mesh",
         }
     }
 
@@ -480,6 +483,7 @@ impl ColliderSpec {
             Self::Sphere(c) => (c.friction, c.restitution),
             Self::Box(c) => (c.friction, c.restitution),
             Self::Cylinder(c) => (c.friction, c.restitution),
+            Self::Mesh(c) => (c.friction, c.restitution),
         }
     }
 }
@@ -558,6 +562,32 @@ pub struct CylinderSpec {
     /// Restitution, in [0, 1] (default 0).
     #[serde(default)]
     pub restitution: f64,
+}
+
+/// A triangle-mesh collider. It is a solid when closed (every edge shared by exactly two
+/// triangles, once in each direction, vertices at one position counted as one), else a
+/// two-sided sheet.
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MeshColliderSpec {
+    /// Flat vertex coordinates `[x0, y0, z0, x1, ...]`, in metres (required).
+    pub vertices: Vec<f64>,
+    /// Flat vertex indices, three per triangle (required).
+    #[serde(deserialize_with = "whole::list")]
+    pub triangles: Vec<usize>,
+    /// The distance particles keep from the triangles, in metres, positive (default 0.005).
+    #[serde(default = "default_mesh_thickness")]
+    pub thickness: f64,
+    /// Coulomb friction μ (default 0.3).
+    #[serde(default = "default_friction")]
+    pub friction: f64,
+    /// Restitution, in [0, 1] (default 0).
+    #[serde(default)]
+    pub restitution: f64,
+}
+
+fn default_mesh_thickness() -> f64 {
+    0.005
 }
 
 /// How wind turns into forces.

@@ -336,11 +336,48 @@ fn collider_problems(p: &mut Problems, at: &str, collider: &ColliderSpec) {
             p.length(&field("radius"), c.radius);
             p.length(&field("height"), c.height);
         }
+        ColliderSpec::Mesh(c) => mesh_collider_problems(p, at, c),
     }
     let (friction, restitution) = collider.surface();
     p.non_negative(&field("friction"), friction);
     if p.finite(&field("restitution"), &[restitution]) && !(0.0..=1.0).contains(&restitution) {
         p.add(field("restitution"), format!("must be in [0, 1], got {restitution}"));
+    }
+}
+
+/// A mesh collider's triangles: indices in range, coordinates in range, some triangle with a
+/// surface. Triangles of zero area are allowed (they have no surface and are left out).
+fn mesh_collider_problems(p: &mut Problems, at: &str, m: &super::types::MeshColliderSpec) {
+    let field = |name: &str| format!("{at}/{name}");
+    let vertex_count = m.vertices.len() / 3;
+    let before = p.0.len();
+    if !m.vertices.len().is_multiple_of(3) || vertex_count < 3 {
+        p.add(
+            field("vertices"),
+            format!("must hold x, y, z for at least 3 vertices; got {} numbers", m.vertices.len()),
+        );
+    } else if vertex_count > u32::MAX as usize {
+        p.add(field("vertices"), format!("must hold at most {} vertices", u32::MAX));
+    }
+    p.vector(&field("vertices"), &m.vertices);
+    if !m.triangles.len().is_multiple_of(3) || m.triangles.is_empty() {
+        p.add(
+            field("triangles"),
+            format!("must hold three indices per triangle, at least one; got {}", m.triangles.len()),
+        );
+    }
+    p.indices(&field("triangles"), &m.triangles, vertex_count, "vertex");
+    p.length(&field("thickness"), m.thickness);
+    if p.0.len() > before {
+        return;
+    }
+    let at_vertex = |i: usize| glam::DVec3::from_slice(&m.vertices[3 * i..3 * i + 3]);
+    let has_surface = m.triangles.chunks_exact(3).any(|t| {
+        let [a, b, c] = [at_vertex(t[0]), at_vertex(t[1]), at_vertex(t[2])];
+        (b - a).cross(c - a).length_squared() > 0.0
+    });
+    if !has_surface {
+        p.add(field("triangles"), "no triangle has a positive area: the mesh has no surface");
     }
 }
 

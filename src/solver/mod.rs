@@ -25,7 +25,9 @@ mod state;
 mod tests;
 
 pub use bodies::{Chain, Cloth, Lattice, Mesh, Orientation, vertex_areas};
-pub use constraints::contacts::{Collider, DEFAULT_FRICTION, Shape};
+pub use constraints::contacts::{
+    BVH_LEAF_SIZE, Collider, DEFAULT_FRICTION, Shape, TriangleBvh, TriangleSurface,
+};
 pub use constraints::self_collision::{PairCapReached, SelfCollision, candidate_pairs};
 pub use diagnostics::Energy;
 pub use forces::dynamics::Dynamics;

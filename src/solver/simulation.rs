@@ -30,7 +30,7 @@ use crate::solver::{normals, parallel};
 /// Every stage name a simulation or a run can report, in the order a step runs them: the
 /// forces, then the constraints and contacts. `normals` is also the per-frame normals a run's
 /// output asks for.
-pub const STAGE_NAMES: [&str; 11] = [
+pub const STAGE_NAMES: [&str; 12] = [
     "gravity",
     "drag",
     "springs",
@@ -42,6 +42,7 @@ pub const STAGE_NAMES: [&str; 11] = [
     "sphere",
     "box",
     "cylinder",
+    "mesh",
 ];
 
 /// Everything about a run that is not the bodies themselves.

@@ -21,6 +21,8 @@
 //! side), is put where it first met the surface. A path that only grazes the surface (as a particle
 //! sliding over the ball does) is not a passage. The start-of-step positions live in a buffer made
 //! once, only when a scene has colliders. Boxes and cylinders are tested at the end of the step.
+//! A triangle mesh (`mesh.rs`, through the hierarchy of `triangle_bvh.rs`) tests the segment
+//! against its triangles, so that a fast particle stops even at a sheet with no inside.
 //!
 //! Each shape has its own file: the test "is this point inside, and where is the nearest surface
 //! point", the cheap branch-free test it starts with (`reaches`, and for the sphere `dips`), and
@@ -31,14 +33,23 @@
 
 mod axis_box;
 mod cylinder;
+mod mesh;
 mod plane;
 mod sphere;
+mod surface_topology;
+mod triangle;
+mod triangle_bvh;
 
+pub use triangle_bvh::{LEAF_SIZE as BVH_LEAF_SIZE, TriangleBvh};
+
+#[cfg(test)]
+pub(crate) mod mesh_tests;
 #[cfg(test)]
 mod tests;
 
 use glam::DVec3;
 
+use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 
 use crate::solver::forces::spring_blocks::{self as blocks, LANES};
@@ -51,8 +62,25 @@ use crate::solver::state::State;
 /// The friction coefficient a collider has when the scene gives none.
 pub const DEFAULT_FRICTION: f64 = 0.3;
 
+/// The triangles of a mesh collider.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct TriangleSurface {
+    /// Vertex positions, in metres.
+    pub vertices: Vec<DVec3>,
+    /// Vertex indices, three per triangle, each below `vertices.len()`.
+    pub triangles: Vec<[u32; 3]>,
+}
+
+impl TriangleSurface {
+    /// Whether it is closed: every edge of its triangles of positive area shared by exactly
+    /// two of them, once in each direction (vertices at one position counted as one).
+    pub fn is_closed(&self) -> bool {
+        surface_topology::Topology::of(self).pseudo_normals.is_some()
+    }
+}
+
 /// A collider's shape.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub enum Shape {
     /// The half-space behind a plane through `point` with outward `normal` (any non-zero length).
     Plane {
@@ -84,6 +112,13 @@ pub enum Shape {
         /// Height, in metres (positive).
         height: f64,
     },
+    /// A triangle mesh: a two-sided sheet, or a solid when it is closed.
+    Mesh {
+        /// Its triangles, shared by the copies of a configuration.
+        surface: Arc<TriangleSurface>,
+        /// The distance particles keep from its triangles, in metres (positive).
+        thickness: f64,
+    },
 }
 
 impl Shape {
@@ -94,17 +129,19 @@ impl Shape {
             Self::Sphere { .. } => "sphere",
             Self::Box { .. } => "box",
             Self::Cylinder { .. } => "cylinder",
+            Self::Mesh { .. } => "mesh",
         }
     }
 
-    /// Signed distance from `p` to the surface, in metres: negative inside.
+    /// Signed distance from `p` to the surface, in metres: negative inside (for a mesh, the
+    /// distance to its triangles, negative only inside a closed one; the thickness not counted).
     pub fn signed_distance(&self, p: DVec3) -> f64 {
         ShapeIn::<f64>::new(self).signed_distance(Vec3::from_dvec3(p))
     }
 }
 
 /// A fixed shape with the response of its surface.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct Collider {
     /// Where it is.
     pub shape: Shape,
@@ -122,12 +159,13 @@ pub(crate) struct Surface<T> {
 }
 
 /// A shape in the simulation's precision.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Debug)]
 enum ShapeIn<T> {
     Plane(plane::Plane<T>),
     Sphere(sphere::Sphere<T>),
     Box(axis_box::AxisBox<T>),
     Cylinder(cylinder::Cylinder<T>),
+    Mesh(Box<mesh::MeshShape<T>>),
 }
 
 impl<T: Real> ShapeIn<T> {
@@ -139,6 +177,9 @@ impl<T: Real> ShapeIn<T> {
             Shape::Cylinder { center, radius, height } => {
                 Self::Cylinder(cylinder::Cylinder::new(center, radius, height))
             }
+            Shape::Mesh { ref surface, thickness } => {
+                Self::Mesh(Box::new(mesh::MeshShape::new(surface, thickness)))
+            }
         }
     }
 
@@ -148,6 +189,7 @@ impl<T: Real> ShapeIn<T> {
             Self::Sphere(s) => s.signed_distance(x),
             Self::Box(s) => s.signed_distance(x),
             Self::Cylinder(s) => s.signed_distance(x),
+            Self::Mesh(s) => s.signed_distance(x),
         }
     }
 
@@ -158,6 +200,7 @@ impl<T: Real> ShapeIn<T> {
             Self::Sphere(s) => s.inside(x),
             Self::Box(s) => s.inside(x),
             Self::Cylinder(s) => s.inside(x),
+            Self::Mesh(s) => s.inside(x),
         }
     }
 
@@ -176,6 +219,7 @@ impl<T: Real> ShapeIn<T> {
                 .for_each(|l| reaches[l] = s.reaches(at(&end, l)) | s.dips(at(&start, l), at(&end, l))),
             Self::Box(s) => (0..LANES).for_each(|l| reaches[l] = s.reaches(at(&end, l))),
             Self::Cylinder(s) => (0..LANES).for_each(|l| reaches[l] = s.reaches(at(&end, l))),
+            Self::Mesh(s) => (0..LANES).for_each(|l| reaches[l] = s.reaches(at(&start, l), at(&end, l))),
         }
         reaches
     }
@@ -195,12 +239,13 @@ impl<T: Real> ShapeIn<T> {
                     None => s.passage(start, end),
                 }
             }
+            Self::Mesh(s) => s.contact(start, end),
             other => other.inside(end),
         }
     }
 }
 
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Debug)]
 struct ColliderIn<T> {
     shape: ShapeIn<T>,
     friction: T,
@@ -334,6 +379,7 @@ impl<T: Real> Contacts<T> {
             ShapeIn::Sphere(_) => "sphere",
             ShapeIn::Box(_) => "box",
             ShapeIn::Cylinder(_) => "cylinder",
+            ShapeIn::Mesh(_) => "mesh",
         };
         self.colliders
             .iter()

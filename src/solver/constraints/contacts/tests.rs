@@ -104,7 +104,10 @@ fn a_particle_at_100_m_s_stops_at_a_plane_and_at_a_sphere() {
         let model = particle(start, DVec3::new(100.0, 0.0, 0.0));
         let mut sim = Simulation::<f64>::new(
             &model,
-            &Config { gravity: DVec3::ZERO, ..config(IntegratorKind::SymplecticEuler, dt, vec![ball]) },
+            &Config {
+                gravity: DVec3::ZERO,
+                ..config(IntegratorKind::SymplecticEuler, dt, vec![ball.clone()])
+            },
         );
         sim.step().unwrap();
         let x = sim.state().positions.get(0).to_dvec3();
@@ -142,8 +145,11 @@ fn contacts_never_add_kinetic_energy_and_leave_no_particle_inside() {
     for shape in all_shapes() {
         for (friction, restitution) in [(0.0, 1.0), (0.3, 0.0), (2.0, 0.5), (0.0, 0.0)] {
             let (positions, velocities) = scatter(2000);
-            let contacts =
-                Contacts::<f64>::new(&[Collider { shape, friction, restitution }], positions.len()).unwrap();
+            let contacts = Contacts::<f64>::new(
+                &[Collider { shape: shape.clone(), friction, restitution }],
+                positions.len(),
+            )
+            .unwrap();
             let mut contacts = contacts;
             contacts.begin_step(&positions);
             let mut state = State { positions: positions.clone(), velocities: velocities.clone() };
@@ -243,7 +249,7 @@ fn colliders_are_stages_only_when_present_each_type_named_once() {
         friction: 0.3,
         restitution: 0.0,
     };
-    let colliders = vec![ball, plane(0.3, 0.0), ball];
+    let colliders = vec![ball.clone(), plane(0.3, 0.0), ball];
     let both = Simulation::<f64>::new(&model, &config(IntegratorKind::SymplecticEuler, 1e-3, colliders));
     assert_eq!(both.stages(), ["gravity", "sphere", "plane"]);
     let shapes = all_shapes().into_iter().map(|shape| Collider { shape, friction: 0.3, restitution: 0.0 });
@@ -263,7 +269,7 @@ fn single_precision_contacts_hold_as_well() {
     model.add_particles((0..20).map(|k| DVec3::new(0.01 * k as f64, 1.0, 0.0)), |_| 0.1, DVec3::ZERO);
     let mut sim = Simulation::<f32>::new(
         &model,
-        &config(IntegratorKind::SymplecticEuler, 1e-3, vec![ball, plane(0.5, 0.0)]),
+        &config(IntegratorKind::SymplecticEuler, 1e-3, vec![ball.clone(), plane(0.5, 0.0)]),
     );
     for _ in 0..2000 {
         sim.step().unwrap();
