@@ -14,6 +14,7 @@
 //!   progress, and the job stores (memory, SQLite, PostgreSQL) that are also the queue.
 //! - [`api`]: the HTTP API over [`jobs`]: routes, problem+json errors, limits, OpenAPI.
 //! - [`config`] and [`server`]: the settings of `drape serve` and the server's life.
+//! - [`progress`]: the progress bar `drape run` and `drape sweep` draw on a terminal.
 //!
 //! Data flows one way: scene JSON → [`scene::Scene`] → [`scene::Compiled`] → [`run::execute`] →
 //! [`run::Recording`] → [`output`].
@@ -22,6 +23,7 @@ pub mod api;
 pub mod config;
 pub mod jobs;
 pub mod output;
+pub mod progress;
 pub mod run;
 pub mod scene;
 pub mod server;

@@ -3,12 +3,14 @@
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
+use std::sync::atomic::AtomicUsize;
 
 use clap::{Parser, Subcommand};
 
 use drape::config::LimitArgs;
 use drape::jobs::{admit_for_table, sweep_over_limit};
 use drape::output::{Format, encode};
+use drape::progress;
 use drape::run::{Control, Status, execute};
 use drape::scene::Scene;
 use drape::sweep::{Sweep, run_locally_with, write_csv, write_svg};
@@ -37,6 +39,9 @@ enum Command {
         /// the format cannot carry are not recorded, and named on standard error.
         #[arg(short, long)]
         format: Option<Format>,
+        /// Draw no progress bar (one is drawn on standard error only when it is a terminal).
+        #[arg(short, long)]
+        quiet: bool,
         /// The limits the run must fit (as `drape serve` applies them; the memory budget is the
         /// run's alone).
         #[command(flatten)]
@@ -58,6 +63,9 @@ enum Command {
         /// Refuse sweeps with more variants than this.
         #[arg(long, default_value_t = 1000)]
         max_variants: u64,
+        /// Draw no progress bar (one is drawn on standard error only when it is a terminal).
+        #[arg(short, long)]
+        quiet: bool,
         /// The limits every run must fit (as `drape serve` applies them; the memory budget is
         /// shared by the runs at once).
         #[command(flatten)]
@@ -68,11 +76,20 @@ enum Command {
 fn main() -> ExitCode {
     match Cli::parse().command {
         Command::Serve(config) => serve(*config),
-        Command::Run { scene, output, format, limits } => run(&scene, output.as_deref(), format, &limits),
-        Command::Sweep { sweep, csv, plot, threads, max_variants, limits } => {
+        Command::Run { scene, output, format, quiet, limits } => {
+            run(&scene, output.as_deref(), format, progress::wanted(quiet), &limits)
+        }
+        Command::Sweep { sweep, csv, plot, threads, max_variants, quiet, limits } => {
             let threads =
                 threads.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
-            run_sweep(&sweep, SweepOptions { csv, plot: plot.as_deref(), threads, max_variants }, &limits)
+            let options = SweepOptions {
+                csv,
+                plot: plot.as_deref(),
+                threads,
+                max_variants,
+                progress: progress::wanted(quiet),
+            };
+            run_sweep(&sweep, options, &limits)
         }
     }
 }
@@ -123,10 +140,11 @@ struct SweepOptions<'a> {
     plot: Option<&'a Path>,
     threads: usize,
     max_variants: u64,
+    progress: bool,
 }
 
 fn run_sweep(path: &Path, options: SweepOptions<'_>, limits: &LimitArgs) -> ExitCode {
-    let SweepOptions { csv, plot, threads, max_variants } = options;
+    let SweepOptions { csv, plot, threads, max_variants, progress } = options;
     let text = match read_input(path) {
         Ok(text) => text,
         Err(code) => return code,
@@ -157,7 +175,11 @@ fn run_sweep(path: &Path, options: SweepOptions<'_>, limits: &LimitArgs) -> Exit
             format!("the run exceeds the limits: {}", reasons.join("; "))
         })
     };
-    let table = run_locally_with(&sweep, threads, &compile);
+    let finished = AtomicUsize::new(0);
+    let runs = sweep.variants.len() + usize::from(sweep.reference.is_some());
+    let table = progress::follow_sweep(progress, &finished, runs, || {
+        run_locally_with(&sweep, threads, &compile, &finished)
+    });
     let mut out = std::io::BufWriter::new(std::io::stdout().lock());
     let printed = if csv {
         write_csv(&table, &mut out)
@@ -181,7 +203,13 @@ fn run_sweep(path: &Path, options: SweepOptions<'_>, limits: &LimitArgs) -> Exit
     }
 }
 
-fn run(path: &Path, output: Option<&Path>, format: Option<Format>, limits: &LimitArgs) -> ExitCode {
+fn run(
+    path: &Path,
+    output: Option<&Path>,
+    format: Option<Format>,
+    show_progress: bool,
+    limits: &LimitArgs,
+) -> ExitCode {
     let text = match read_input(path) {
         Ok(text) => text,
         Err(code) => return code,
@@ -223,7 +251,10 @@ fn run(path: &Path, output: Option<&Path>, format: Option<Format>, limits: &Limi
             return ExitCode::from(2);
         }
     };
-    let recording = execute(&compiled, &Control::new());
+    let control = Control::new();
+    let recording = progress::follow_run(show_progress, &control, compiled.steps, compiled.config.dt, || {
+        execute(&compiled, &control)
+    });
     if recording.stats.status == Status::Failed {
         let reason = recording.stats.failure.as_deref().unwrap_or("a stage met more than the run may hold");
         eprintln!("drape: the run of {} failed: {reason}", path.display());

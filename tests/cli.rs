@@ -178,3 +178,55 @@ fn a_run_that_meets_more_self_collision_pairs_than_it_may_hold_exits_1_with_the_
     assert!(stderr.contains("failed: self-collision met") && stderr.contains("candidate pairs"), "{stderr}");
     assert!(out.stdout.is_empty());
 }
+
+/// `drape` with `args` in a pseudo-terminal (util-linux `script`), as a person at a terminal runs
+/// it: what the terminal received.
+fn drape_in_terminal(args: &str) -> String {
+    let command = format!("{} {args}", env!("CARGO_BIN_EXE_drape"));
+    let out = Command::new("script")
+        .args(["-qec", &command, "/dev/null"])
+        .env_remove("DRAPE_MEMORY_BUDGET")
+        .env_remove("DRAPE_MAX_STEPS")
+        .stdin(Stdio::null())
+        .output()
+        .expect("util-linux `script` runs a command in a pseudo-terminal");
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stdout));
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+#[test]
+fn a_run_and_a_sweep_show_progress_on_a_terminal_and_nowhere_else() {
+    let dir = tempfile::tempdir().unwrap();
+    // 20,000 steps: long enough that the first redraw comes before the end.
+    let scene = dir.path().join("chain.json");
+    std::fs::write(
+        &scene,
+        r#"{"duration": 2, "dt": 0.0001, "bodies": [{"type": "chain", "count": 50}], "output": {"frames": "final"}}"#,
+    )
+    .unwrap();
+    let result = dir.path().join("result.json");
+    let args = format!("run {} -o {}", scene.display(), result.display());
+    let shown = drape_in_terminal(&args);
+    assert!(shown.contains("/20000 steps") && shown.contains(" left"), "{shown:?}");
+    assert!(std::fs::read(&result).unwrap().starts_with(b"{"));
+    let quiet = drape_in_terminal(&format!("{args} --quiet"));
+    assert!(!quiet.contains("steps"), "{quiet:?}");
+
+    let sweep = dir.path().join("sweep.json");
+    std::fs::write(
+        &sweep,
+        format!(
+            r#"{{"scene": {}, "vary": {{"/dt": [0.0001, 0.0002, 0.0004]}}}}"#,
+            std::fs::read_to_string(&scene).unwrap()
+        ),
+    )
+    .unwrap();
+    let shown = drape_in_terminal(&format!("sweep {} --csv", sweep.display()));
+    assert!(shown.contains("/3 runs"), "{shown:?}");
+
+    // Not a terminal: standard error carries nothing for a run that succeeds.
+    let piped =
+        Command::new(env!("CARGO_BIN_EXE_drape")).args(["run", scene.to_str().unwrap()]).output().unwrap();
+    assert!(piped.status.success());
+    assert_eq!(String::from_utf8_lossy(&piped.stderr), "");
+}

@@ -14,9 +14,13 @@ use serve::Server;
 const SCENE: &str = r#"{"duration": 0.5, "dt": 0.01, "bodies": [{"type": "chain", "count": 4}],
                        "output": {"frames": "final"}}"#;
 
-fn script(base: &str, name: &str, args: &[&str]) -> Output {
+fn run(base: &str, name: &str, args: &[&str]) -> Output {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/curl").join(name);
-    let output = Command::new(&path).args(args).env("DRAPE", base).output().unwrap();
+    Command::new(&path).args(args).env("DRAPE", base).output().unwrap()
+}
+
+fn script(base: &str, name: &str, args: &[&str]) -> Output {
+    let output = run(base, name, args);
     assert!(output.status.success(), "{name} {args:?}: {}", String::from_utf8_lossy(&output.stderr));
     output
 }
@@ -24,6 +28,13 @@ fn script(base: &str, name: &str, args: &[&str]) -> Output {
 fn json(output: &Output) -> Value {
     serde_json::from_slice(&output.stdout)
         .unwrap_or_else(|e| panic!("{e}: {}", String::from_utf8_lossy(&output.stdout)))
+}
+
+/// The JSON on the last line of a script's standard error (curl's own message comes first).
+fn last_line_json(stderr: &[u8]) -> Value {
+    let text = String::from_utf8_lossy(stderr);
+    let last = text.lines().last().unwrap_or_default();
+    serde_json::from_str(last).unwrap_or_else(|e| panic!("{e}: {text}"))
 }
 
 #[test]
@@ -75,6 +86,20 @@ fn every_curl_script_works_against_drape_serve() {
     let ci = script(&base, "ci_job.sh", &[scene, dir.join("ci.json").to_str().unwrap()]);
     assert!(String::from_utf8(ci.stdout).unwrap().contains("status succeeded"));
     assert!(std::fs::read(dir.join("ci.json")).unwrap().starts_with(b"{\"mesh\""));
+
+    // A refused scene or sweep: the CI scripts fail with 2 and print the problem body, which
+    // names the field at fault, on standard error.
+    let bad = dir.join("bad.json");
+    std::fs::write(&bad, r#"{"duration": 1, "dt": -1, "bodies": [{"type": "chain", "count": 4}]}"#).unwrap();
+    let refused = run(&base, "ci_job.sh", &[bad.to_str().unwrap(), dir.join("no.json").to_str().unwrap()]);
+    assert_eq!(refused.status.code(), Some(2));
+    let problem = last_line_json(&refused.stderr);
+    assert_eq!(problem["status"], 422);
+    assert_eq!(problem["errors"][0]["pointer"], "/dt", "{problem}");
+    let refused = run(&base, "ci_sweep.sh", &[bad.to_str().unwrap(), dir.to_str().unwrap()]);
+    assert_eq!(refused.status.code(), Some(2));
+    let problem = last_line_json(&refused.stderr);
+    assert_eq!(problem["status"], 422, "{problem}");
 
     let sweep = json(&script(&base, "submit_sweep.sh", &[]));
     let sweep_id = sweep["id"].as_str().unwrap();

@@ -7,8 +7,9 @@ DRAPE="${DRAPE:-http://127.0.0.1:8080}"
 SCENE="${1:-$(dirname "$0")/../hanging_cloth.json}"
 OUT="${2:-result.json}"
 KEY="ci-${CI_JOB_ID:-$$}-$(basename "$SCENE")"
+# On a refusal, curl fails and the problem body (which names each field at fault) goes to stderr.
 JOB=$(curl -sS --fail-with-body -H 'Content-Type: application/json' -H "Idempotency-Key: $KEY" \
-  --data-binary "@$SCENE" "$DRAPE/jobs")
+  --data-binary "@$SCENE" "$DRAPE/jobs") || { printf '%s\n' "$JOB" >&2; exit 2; }
 ID=$(printf '%s' "$JOB" | sed -n 's/.*"id":"\([0-9a-f]*\)".*/\1/p')
 echo "job $ID"
 # The event stream ends with one end event; its data is the job.

@@ -6,7 +6,9 @@ DRAPE="${DRAPE:-http://127.0.0.1:8080}"
 # unless every run succeeded. Usage: ci_sweep.sh [SWEEP.json] [OUT_DIR]
 SWEEP="${1:-$(dirname "$0")/../sweeps/tiny.json}"
 OUT="${2:-.}"
-ANSWER=$(curl -sS --fail-with-body -H 'Content-Type: application/json' --data-binary "@$SWEEP" "$DRAPE/sweeps")
+# On a refusal, curl fails and the problem body (which names each field at fault) goes to stderr.
+ANSWER=$(curl -sS --fail-with-body -H 'Content-Type: application/json' --data-binary "@$SWEEP" "$DRAPE/sweeps") \
+  || { printf '%s\n' "$ANSWER" >&2; exit 2; }
 ID=$(printf '%s' "$ANSWER" | sed -n 's/.*"id":"\([0-9a-f]*\)".*/\1/p')
 echo "sweep $ID"
 TRIES=0

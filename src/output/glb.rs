@@ -21,14 +21,23 @@
 //! lists the indices of the frames it left out in `asset.extras.omitted_frames`. A recording with
 //! no such frame at all cannot be a GLB ([`shown_frames`] is empty, and `encode` refuses it). The BIN chunk is written straight from the recording; only the last frame of
 //! each body is held in `f32` while the header is built.
+//!
+//! Each collider is one more node, named as in the result (`collider:0`, ...), after the
+//! bodies' nodes, with a closed mesh of its shape ([`tessellate`]; a plane is a square reaching
+//! twice as far from its point as the farthest particle of the base frame, and at least 5 m) in
+//! a material of its own. A collider that moves has its transform at the base frame as the
+//! node's `translation` and `rotation`, and with several frames shown the animation drives them
+//! with the same keyframe times (`STEP`). A collider whose shape or transforms are not finite in
+//! `f32` is left out and listed in `asset.extras.omitted_colliders`.
 
 use std::io::{self, Write};
 
 use serde_json::{Value, json};
 
 use super::Selected;
+use super::collider_mesh::tessellate;
 use super::surface::{body_range, body_triangles, body_vectors, vertex_normals};
-use crate::run::{Recording, Samples};
+use crate::run::{ColliderShape, RecordedCollider, Recording, RigidTransform, Samples};
 use crate::scene::BodyInfo;
 
 const MAGIC: &[u8; 4] = b"glTF";
@@ -43,6 +52,8 @@ const MODE_LINE_STRIP: u32 = 3;
 const MODE_TRIANGLES: u32 = 4;
 /// The normal given to a vertex on no triangle, which glTF would otherwise refuse as non-unit.
 const UNDRAWN_NORMAL: [f32; 3] = [0.0, 1.0, 0.0];
+/// The least half-size of the square that shows a plane collider, in metres.
+const PLANE_MIN_HALF_SIZE: f64 = 5.0;
 
 /// Writes `recording` as a GLB file. It needs positions and at least one frame that glTF can
 /// show (see [`shown_frames`]).
@@ -80,6 +91,7 @@ struct Glb<'a> {
     positions: &'a Samples,
     normals: Option<&'a Samples>,
     bodies: Vec<BodyPlan<'a>>,
+    colliders: Vec<ColliderPlan>,
     /// The indices of the recorded frames the file shows, in order.
     shown: Vec<usize>,
     times: Vec<f32>,
@@ -104,27 +116,71 @@ impl<'a> Glb<'a> {
         let mut layout = Layout::default();
         let meshes: Vec<Value> =
             bodies.iter().map(|plan| plan.mesh(&mut layout, recording, &shown, positions, normals)).collect();
-        let nodes: Vec<Value> = bodies
+        let mut nodes: Vec<Value> = bodies
             .iter()
             .enumerate()
             .map(|(index, plan)| json!({ "name": plan.body.name, "mesh": index }))
             .collect();
+        let plane_half_size = |point: [f64; 3]| {
+            let farthest =
+                bodies.iter().flat_map(|b| b.base_positions.chunks_exact(3)).fold(0.0, |far: f64, p| {
+                    let d = [0, 1, 2].map(|a| f64::from(p[a]) - point[a]);
+                    far.max((d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt())
+                });
+            (2.0 * farthest).max(PLANE_MIN_HALF_SIZE)
+        };
+        let (colliders, omitted_colliders): (Vec<_>, Vec<_>) = recording
+            .colliders
+            .iter()
+            .map(|c| ColliderPlan::new(c, &shown, &plane_half_size))
+            .partition(Option::is_some);
+        let colliders: Vec<ColliderPlan> = colliders.into_iter().flatten().collect();
+        let cloth_material = bodies.iter().any(|b| !b.triangles.is_empty());
+        let collider_material = usize::from(cloth_material);
+        for plan in &colliders {
+            let mut node = json!({ "name": plan.name, "mesh": nodes.len() });
+            if let Some(base) = &plan.base {
+                node["translation"] = json!(base.translation);
+                node["rotation"] = json!(base.rotation);
+            }
+            nodes.push(node);
+        }
+        let mut meshes = meshes;
+        meshes.extend(colliders.iter().map(|plan| plan.mesh(&mut layout, collider_material)));
         let mut document = json!({
             "asset": { "version": "2.0", "generator": concat!("drape ", env!("CARGO_PKG_VERSION")) },
             "scene": 0,
-            "scenes": [{ "nodes": (0..bodies.len()).collect::<Vec<_>>() }],
+            "scenes": [{ "nodes": (0..nodes.len()).collect::<Vec<_>>() }],
             "nodes": nodes,
             "meshes": meshes,
         });
         if frames < recording.frames.len() {
             let omitted: Vec<usize> =
                 (0..recording.frames.len()).filter(|k| shown.binary_search(k).is_err()).collect();
-            document["asset"]["extras"] = json!({ "omitted_frames": omitted });
+            document["asset"]["extras"]["omitted_frames"] = json!(omitted);
         }
-        if bodies.iter().any(|b| !b.triangles.is_empty()) {
-            // Only triangle primitives use it; the validator flags an unused material.
-            document["materials"] = json!([{ "name": "cloth", "doubleSided": true,
-                "pbrMetallicRoughness": { "metallicFactor": 0.0, "roughnessFactor": 0.8 } }]);
+        if !omitted_colliders.is_empty() {
+            let names: Vec<&str> = recording
+                .colliders
+                .iter()
+                .filter(|c| !colliders.iter().any(|plan| plan.name == c.name))
+                .map(|c| c.name.as_str())
+                .collect();
+            document["asset"]["extras"]["omitted_colliders"] = json!(names);
+        }
+        // Only triangle primitives use a material; the validator flags an unused one.
+        let mut materials = Vec::new();
+        if cloth_material {
+            materials.push(json!({ "name": "cloth", "doubleSided": true,
+                "pbrMetallicRoughness": { "metallicFactor": 0.0, "roughnessFactor": 0.8 } }));
+        }
+        if !colliders.is_empty() {
+            materials.push(json!({ "name": "collider", "doubleSided": true,
+                "pbrMetallicRoughness": { "baseColorFactor": [0.55, 0.57, 0.6, 1.0],
+                                          "metallicFactor": 0.0, "roughnessFactor": 0.9 } }));
+        }
+        if !materials.is_empty() {
+            document["materials"] = materials.into();
         }
         let times: Vec<f32> = shown.iter().map(|&k| recording.frames.times[k] as f32).collect();
         if frames > 1 {
@@ -142,12 +198,28 @@ impl<'a> Glb<'a> {
                             "values": { "bufferView": ones } },
             }));
             let output = layout.accessors.len() - 1;
-            let channels: Vec<Value> = (0..bodies.len())
+            let mut channels: Vec<Value> = (0..bodies.len())
                 .map(|node| json!({ "sampler": 0, "target": { "node": node, "path": "weights" } }))
                 .collect();
+            let mut samplers = vec![json!({ "input": input, "output": output, "interpolation": "STEP" })];
+            for (k, plan) in colliders.iter().enumerate() {
+                if plan.shown.is_none() {
+                    continue;
+                }
+                let node = bodies.len() + k;
+                let translations = layout.view(12 * frames, None, None);
+                let translations = layout.vec3(translations, 0, frames, None);
+                let rotations = layout.view(16 * frames, None, None);
+                let rotations = layout.accessor(rotations, 0, FLOAT, frames, "VEC4", None);
+                for (path, output) in [("translation", translations), ("rotation", rotations)] {
+                    channels
+                        .push(json!({ "sampler": samplers.len(), "target": { "node": node, "path": path } }));
+                    samplers.push(json!({ "input": input, "output": output, "interpolation": "STEP" }));
+                }
+            }
             document["animations"] = json!([{
                 "name": "motion",
-                "samplers": [{ "input": input, "output": output, "interpolation": "STEP" }],
+                "samplers": samplers,
                 "channels": channels,
             }]);
         }
@@ -155,7 +227,7 @@ impl<'a> Glb<'a> {
         document["accessors"] = layout.accessors.into();
         document["bufferViews"] = layout.views.into();
         document["buffers"] = json!([{ "byteLength": layout_length }]);
-        Self { recording, positions, normals, bodies, shown, times, document, layout_length }
+        Self { recording, positions, normals, bodies, colliders, shown, times, document, layout_length }
     }
 
     /// The BIN chunk, in the order [`Glb::plan`] laid it out.
@@ -190,13 +262,116 @@ impl<'a> Glb<'a> {
                 }
             }
         }
+        for plan in &self.colliders {
+            write_f32s(w, plan.positions.iter().flatten().copied())?;
+            write_f32s(w, plan.normals.iter().flatten().copied())?;
+            plan.triangles.iter().flatten().try_for_each(|index| w.write_all(&index.to_le_bytes()))?;
+        }
         if frames > 1 {
             write_f32s(w, self.times.iter().copied())?;
             (0..frames).try_for_each(|k| w.write_all(&((k * frames + k) as u32).to_le_bytes()))?;
             write_f32s(w, (0..frames).map(|_| 1.0))?;
+            for shown in self.colliders.iter().filter_map(|plan| plan.shown.as_ref()) {
+                write_f32s(w, shown.iter().flat_map(|t| t.translation))?;
+                write_f32s(w, shown.iter().flat_map(|t| t.rotation))?;
+            }
         }
         Ok(())
     }
+}
+
+/// A collider's transform as glTF holds it.
+#[derive(Clone, Copy)]
+struct NodeTransform {
+    translation: [f32; 3],
+    rotation: [f32; 4],
+}
+
+/// What one collider contributes: its shape in `f32`, and for one that moves its transform at
+/// each frame shown.
+struct ColliderPlan {
+    name: String,
+    positions: Vec<[f32; 3]>,
+    normals: Vec<[f32; 3]>,
+    triangles: Vec<[u32; 3]>,
+    /// The transform at the base (last shown) frame, for a collider that moves.
+    base: Option<NodeTransform>,
+    /// The transform at each frame shown, for a collider that moves.
+    shown: Option<Vec<NodeTransform>>,
+}
+
+impl ColliderPlan {
+    /// `None` when glTF cannot show the collider: a value not finite in `f32`, a quaternion of
+    /// no length, an index past its vertices, or no triangle.
+    fn new(
+        collider: &RecordedCollider,
+        shown: &[usize],
+        plane_half_size: &dyn Fn([f64; 3]) -> f64,
+    ) -> Option<Self> {
+        let half_size = match collider.shape {
+            ColliderShape::Plane { point, .. } => plane_half_size(point),
+            _ => 0.0,
+        };
+        let surface = tessellate(&collider.shape, half_size);
+        let positions: Vec<[f32; 3]> = surface.positions.iter().map(|p| p.map(|x| x as f32)).collect();
+        let normals: Vec<[f32; 3]> = surface.normals.iter().map(|&n| shown_normal(n)).collect();
+        let finite = |v: &[f32]| v.iter().all(|x| x.is_finite());
+        let drawable = !surface.triangles.is_empty()
+            && surface.triangles.iter().flatten().all(|&i| (i as usize) < positions.len())
+            && positions.iter().all(|p| finite(p))
+            && normals.iter().all(|n| finite(n));
+        if !drawable {
+            return None;
+        }
+        let shown = match &collider.frames {
+            None => None,
+            Some(frames) => {
+                let transforms =
+                    shown.iter().map(|&k| node_transform(frames.get(k)?)).collect::<Option<Vec<_>>>()?;
+                Some(transforms)
+            }
+        };
+        let base = shown.as_ref().and_then(|s| s.last()).copied();
+        Some(Self {
+            name: collider.name.clone(),
+            positions,
+            normals,
+            triangles: surface.triangles,
+            base,
+            shown,
+        })
+    }
+
+    /// The collider's mesh; lays out its views.
+    fn mesh(&self, layout: &mut Layout, material: usize) -> Value {
+        let count = self.positions.len();
+        let mut bounds = Bounds::default();
+        self.positions.iter().for_each(|&p| bounds.add(p));
+        let view = layout.view(12 * count, Some(ARRAY_BUFFER), None);
+        let position = layout.vec3(view, 0, count, Some(bounds.json()));
+        let view = layout.view(12 * count, Some(ARRAY_BUFFER), None);
+        let normal = layout.vec3(view, 0, count, None);
+        let view = layout.view(12 * self.triangles.len(), Some(ELEMENT_ARRAY_BUFFER), None);
+        let indices = layout.accessor(view, 0, UNSIGNED_INT, 3 * self.triangles.len(), "SCALAR", None);
+        json!({ "name": self.name, "primitives": [{
+            "attributes": { "POSITION": position, "NORMAL": normal },
+            "indices": indices, "mode": MODE_TRIANGLES, "material": material,
+        }] })
+    }
+}
+
+/// `transform` in `f32`, its quaternion made unit (glTF requires it); `None` when a value is
+/// not finite in `f32` or the quaternion has no length.
+fn node_transform(transform: &RigidTransform) -> Option<NodeTransform> {
+    let q = transform.rotation;
+    let length = q.iter().map(|x| x * x).sum::<f64>().sqrt();
+    if !(length > 0.0 && length.is_finite()) {
+        return None;
+    }
+    let rotation = q.map(|x| (x / length) as f32);
+    let translation = transform.translation.map(|x| x as f32);
+    (translation.iter().chain(&rotation).all(|x| x.is_finite()))
+        .then_some(NodeTransform { translation, rotation })
 }
 
 /// What one body contributes: its last frame in `f32`, its normals and its re-based triangles.

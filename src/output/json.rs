@@ -1,5 +1,9 @@
 //! The JSON result: `mesh`, `frames`, `final` and `stats`, with flat numeric arrays.
 //!
+//! `colliders` (present when the scene has any) lists each collider's shape, and for one that
+//! moves its transform at each frame; it is not a selectable field, being small next to the
+//! frames.
+//!
 //! Numbers are written in the run's precision: an `f32` run prints the shortest decimal that
 //! reads back as the same `f32`. JSON has no NaN or infinity, so a number that is not finite (an
 //! energy that overflowed, say) is written as `null`, wherever it is. `frames` is present for
@@ -12,7 +16,7 @@ use serde::Serialize;
 use serde::ser::{SerializeMap, Serializer};
 
 use super::Selected;
-use crate::run::{EstimateOutcome, Recording, Samples, Stats};
+use crate::run::{ColliderShape, EstimateOutcome, RecordedCollider, Recording, Samples, Stats};
 use crate::scene::FrameSelection;
 use crate::solver::Energy;
 
@@ -47,6 +51,10 @@ impl Serialize for ResultView<'_> {
         let (r, selected) = (self.recording, self.selected);
         let mut map = s.serialize_map(None)?;
         map.serialize_entry("mesh", &MeshView(r))?;
+        if !r.colliders.is_empty() {
+            let colliders: Vec<ColliderView> = r.colliders.iter().map(ColliderView).collect();
+            map.serialize_entry("colliders", &colliders)?;
+        }
         if r.selection == FrameSelection::All {
             let frames: Vec<FrameView> =
                 (0..r.frames.len()).map(|k| FrameView { recording: r, selected, index: k }).collect();
@@ -77,6 +85,48 @@ impl Serialize for MeshView<'_> {
             )
             .collect();
         map.serialize_entry("bodies", &bodies)?;
+        map.end()
+    }
+}
+
+struct ColliderView<'a>(&'a RecordedCollider);
+
+impl Serialize for ColliderView<'_> {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        let c = self.0;
+        let mut map = s.serialize_map(None)?;
+        map.serialize_entry("name", &c.name)?;
+        map.serialize_entry("type", c.shape.type_name())?;
+        match &c.shape {
+            ColliderShape::Plane { point, normal } => {
+                map.serialize_entry("point", point)?;
+                map.serialize_entry("normal", normal)?;
+            }
+            ColliderShape::Sphere { center, radius } => {
+                map.serialize_entry("center", center)?;
+                map.serialize_entry("radius", radius)?;
+            }
+            ColliderShape::Box { center, half_extents } => {
+                map.serialize_entry("center", center)?;
+                map.serialize_entry("half_extents", half_extents)?;
+            }
+            ColliderShape::Cylinder { center, radius, height } => {
+                map.serialize_entry("center", center)?;
+                map.serialize_entry("radius", radius)?;
+                map.serialize_entry("height", height)?;
+            }
+            ColliderShape::Mesh { vertices, triangles } => {
+                map.serialize_entry("vertices", vertices)?;
+                map.serialize_entry("triangles", triangles.as_flattened())?;
+            }
+        }
+        if let Some(frames) = &c.frames {
+            let frames: Vec<_> = frames
+                .iter()
+                .map(|f| serde_json::json!({"translation": f.translation, "rotation": f.rotation}))
+                .collect();
+            map.serialize_entry("frames", &frames)?;
+        }
         map.end()
     }
 }

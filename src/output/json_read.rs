@@ -15,7 +15,10 @@ use serde::Deserialize;
 use serde_json::Value;
 use thiserror::Error;
 
-use crate::run::{Diverged, ErrorEstimate, EstimateOutcome, Frames, Recording, Samples, Stats, Status};
+use crate::run::{
+    ColliderShape, Diverged, ErrorEstimate, EstimateOutcome, Frames, RecordedCollider, Recording,
+    RigidTransform, Samples, Stats, Status,
+};
 use crate::scene::{BodyInfo, DtSource, ErrorEstimateName, FrameSelection, Precision};
 use crate::solver::{Energy, IntegratorKind, LinearSolveStats, STAGE_NAMES};
 
@@ -39,6 +42,8 @@ pub enum ReadError {
 struct ResultIn {
     mesh: MeshIn,
     #[serde(default)]
+    colliders: Vec<ColliderIn>,
+    #[serde(default)]
     frames: Option<Vec<FrameIn>>,
     #[serde(default, rename = "final")]
     last: Option<FrameIn>,
@@ -60,6 +65,86 @@ struct BodyIn {
     kind: String,
     offset: usize,
     count: usize,
+}
+
+/// A collider entry: `type` says which of the shape fields it has.
+#[derive(Deserialize)]
+struct ColliderIn {
+    name: String,
+    #[serde(rename = "type")]
+    kind: String,
+    point: Option<[Number; 3]>,
+    normal: Option<[Number; 3]>,
+    center: Option<[Number; 3]>,
+    radius: Option<Number>,
+    half_extents: Option<[Number; 3]>,
+    height: Option<Number>,
+    vertices: Option<Vec<Number>>,
+    triangles: Option<Vec<u32>>,
+    frames: Option<Vec<TransformIn>>,
+}
+
+#[derive(Deserialize)]
+struct TransformIn {
+    translation: [Number; 3],
+    rotation: [Number; 4],
+}
+
+impl ColliderIn {
+    fn read(self, frames: usize) -> Result<RecordedCollider, ReadError> {
+        fn given<T>(value: Option<T>, field: &'static str) -> Result<T, ReadError> {
+            value.ok_or(ReadError::Value { field, value: "missing".into() })
+        }
+        let v = |a: [Number; 3]| a.map(|n| n.0);
+        let shape = match self.kind.as_str() {
+            "plane" => ColliderShape::Plane {
+                point: v(given(self.point, "colliders.point")?),
+                normal: v(given(self.normal, "colliders.normal")?),
+            },
+            "sphere" => ColliderShape::Sphere {
+                center: v(given(self.center, "colliders.center")?),
+                radius: given(self.radius, "colliders.radius")?.0,
+            },
+            "box" => ColliderShape::Box {
+                center: v(given(self.center, "colliders.center")?),
+                half_extents: v(given(self.half_extents, "colliders.half_extents")?),
+            },
+            "cylinder" => ColliderShape::Cylinder {
+                center: v(given(self.center, "colliders.center")?),
+                radius: given(self.radius, "colliders.radius")?.0,
+                height: given(self.height, "colliders.height")?.0,
+            },
+            "mesh" => {
+                let triangles = given(self.triangles, "colliders.triangles")?;
+                if triangles.len() % 3 != 0 {
+                    let value = format!("{} indices, not whole triangles", triangles.len());
+                    return Err(ReadError::Value { field: "colliders.triangles", value });
+                }
+                ColliderShape::Mesh {
+                    vertices: given(self.vertices, "colliders.vertices")?.iter().map(|n| n.0).collect(),
+                    triangles: triangles.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect(),
+                }
+            }
+            _ => return Err(ReadError::Value { field: "colliders.type", value: self.kind }),
+        };
+        let transforms = self
+            .frames
+            .map(|list| {
+                if list.len() != frames {
+                    let value = format!("{} transforms for {frames} frames", list.len());
+                    return Err(ReadError::Value { field: "colliders.frames", value });
+                }
+                Ok(list
+                    .iter()
+                    .map(|f| RigidTransform {
+                        translation: v(f.translation),
+                        rotation: f.rotation.map(|n| n.0),
+                    })
+                    .collect())
+            })
+            .transpose()?;
+        Ok(RecordedCollider { name: self.name, shape, frames: transforms })
+    }
 }
 
 #[derive(Deserialize)]
@@ -139,6 +224,8 @@ pub fn read_json(bytes: &[u8]) -> Result<Recording, ReadError> {
             .and_then(|f| f.strain.as_ref())
             .map(|_| frames.iter().flat_map(|f| f.strain.iter().flatten().map(|n| n.0)).collect()),
     };
+    let colliders =
+        result.colliders.into_iter().map(|c| c.read(recorded.times.len())).collect::<Result<_, _>>()?;
     Ok(Recording {
         particles: result.mesh.particles,
         springs: result.mesh.springs,
@@ -146,6 +233,7 @@ pub fn read_json(bytes: &[u8]) -> Result<Recording, ReadError> {
         bodies,
         selection,
         frames: recorded,
+        colliders,
         has_final,
         stats,
     })

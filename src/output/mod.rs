@@ -9,6 +9,7 @@
 //! JSON, `NaN`/`Infinity`/`-Infinity` in OBJ, the IEEE value itself in NPY, NPZ and PC2; glTF
 //! allows none, so a GLB leaves out the frames that hold one.
 
+mod collider_mesh;
 mod format;
 mod glb;
 mod json;

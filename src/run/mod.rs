@@ -20,6 +20,7 @@
 //! before it has begun to fall. The velocities of the step before each check are kept in a buffer
 //! made once before the first step, and only when the scene asks to stop at rest.
 
+mod colliders;
 mod control;
 mod error_estimate;
 mod recording;
@@ -27,6 +28,7 @@ mod schedule;
 
 use std::time::Instant;
 
+pub use colliders::{ColliderShape, RecordedCollider, RigidTransform};
 pub use control::Control;
 pub use error_estimate::{ErrorEstimate, EstimateOutcome};
 pub use recording::{Diverged, Frames, Recording, Samples, Stats, Status};
@@ -312,6 +314,13 @@ where
                 energy: f.energy,
                 strain: f.strain,
             },
+            colliders: compiled
+                .config
+                .colliders
+                .iter()
+                .enumerate()
+                .map(|(index, collider)| RecordedCollider::from_solver(index, collider))
+                .collect(),
             has_final,
             stats,
         }

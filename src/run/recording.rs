@@ -1,6 +1,6 @@
 //! What a run produces: the mesh, the recorded frames, and the statistics of the run.
 
-use super::ErrorEstimate;
+use super::{ErrorEstimate, RecordedCollider};
 use crate::scene::{BodyInfo, DtSource, FrameSelection, Precision};
 use crate::solver::{Energy, IntegratorKind, LinearSolveStats};
 
@@ -168,6 +168,8 @@ pub struct Recording {
     pub selection: FrameSelection,
     /// The recorded frames.
     pub frames: Frames,
+    /// The scene's colliders, in scene order (empty when it has none).
+    pub colliders: Vec<RecordedCollider>,
     /// Whether the last recorded frame is the final state of a finished run.
     pub has_final: bool,
     /// How the run went.

@@ -11,14 +11,16 @@ use crate::scene::{Compiled, Scene};
 
 /// Runs the reference and every variant, `threads` at a time (at least one), and makes the table.
 pub fn run_locally(sweep: &Sweep, threads: usize) -> Table {
-    run_locally_with(sweep, threads, &|scene| Ok(compile_for_table(scene)))
+    run_locally_with(sweep, threads, &|scene| Ok(compile_for_table(scene)), &AtomicUsize::new(0))
 }
 
-/// [`run_locally`], each scene compiled by `compile` (which may refuse it, in words).
+/// [`run_locally`], each scene compiled by `compile` (which may refuse it, in words); `finished`
+/// counts the runs that have ended, for a caller showing progress from another thread.
 pub fn run_locally_with(
     sweep: &Sweep,
     threads: usize,
     compile: &(dyn Fn(&Scene) -> Result<Compiled, String> + Sync),
+    finished: &AtomicUsize,
 ) -> Table {
     let scenes: Vec<&Scene> = sweep.reference.iter().chain(sweep.variants.iter().map(|v| &v.scene)).collect();
     let results: Vec<Mutex<Option<Result<Recording, String>>>> =
@@ -43,6 +45,7 @@ pub fn run_locally_with(
                     })
                     .and_then(|compiled| compiled);
                     *results[index].lock().unwrap_or_else(|e| e.into_inner()) = Some(outcome);
+                    finished.fetch_add(1, Ordering::Relaxed);
                 }
             });
         }

@@ -17,7 +17,11 @@ pub struct Run {
 impl Run {
     pub fn new(scene: &str) -> Self {
         let scene = Scene::from_json(scene.as_bytes()).expect("a valid scene");
-        let recording = execute(&scene.compile(), &Control::new());
+        Self::of(execute(&scene.compile(), &Control::new()))
+    }
+
+    /// A recording made or changed by hand, with its JSON result.
+    pub fn of(recording: Recording) -> Self {
         let mut bytes = Vec::new();
         write_json(&recording, &mut bytes).unwrap();
         Self { recording, json: serde_json::from_slice(&bytes).unwrap() }

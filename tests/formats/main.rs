@@ -3,6 +3,7 @@
 
 #[path = "../common/mod.rs"]
 mod api;
+mod colliders;
 mod common;
 #[path = "../deadline/mod.rs"]
 mod deadline;

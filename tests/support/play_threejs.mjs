@@ -1,7 +1,8 @@
 // Plays a drape GLB with three.js's own GLTFLoader and AnimationMixer (npm package `three`,
 // installed by .ci/run into .ci/node) and checks it against the JSON result of the same run: at
 // each keyframe time exactly that frame's morph target shows, fully, and the vertices three.js
-// would draw are the frame's positions (within the f32 rounding of the morph deltas).
+// would draw are the frame's positions (within the f32 rounding of the morph deltas), and each
+// collider's node (`collider:N`) stands where the result's `colliders` put it at that frame.
 //
 // usage: node play_threejs.mjs RESULT.glb RESULT.json
 // Exits 0 when every frame matches, 1 on a mismatch, 2 if three.js cannot be loaded.
@@ -33,7 +34,14 @@ function fail(message) {
 
 new GLTFLoader().parse(buffer, "", (gltf) => {
     const objects = [];
-    gltf.scene.traverse((o) => { if (o.isMesh || o.isLine) objects.push(o); });
+    const colliders = [];
+    // three.js drops the ':' from object names; the glTF name stays in userData.
+    gltf.scene.traverse((o) => {
+        if (o.userData.name?.startsWith("collider:")) colliders.push(o);
+        else if (o.isMesh || o.isLine) objects.push(o);
+    });
+    const recorded = result.colliders ?? [];
+    if (colliders.length !== recorded.length) fail(`${colliders.length} collider nodes for ${recorded.length} colliders`);
     const bodies = result.mesh.bodies;
     if (objects.length !== bodies.length) fail(`${objects.length} objects for ${bodies.length} bodies`);
     if (gltf.animations.length !== 1) fail(`${gltf.animations.length} animations`);
@@ -48,6 +56,16 @@ new GLTFLoader().parse(buffer, "", (gltf) => {
     let checked = 0;
     for (let k = 0; k < frames.length; k++) {
         mixer.setTime(times[k]);
+        for (const object of colliders) {
+            const entry = recorded.find((c) => c.name === object.userData.name);
+            if (!entry) fail(`no collider named ${object.userData.name}`);
+            const transform = entry.frames ? entry.frames[k] : { translation: [0, 0, 0], rotation: [0, 0, 0, 1] };
+            const q = transform.rotation;
+            const length = Math.hypot(...q);
+            const shown = [...object.position.toArray(), ...object.quaternion.toArray()];
+            const expected = [...transform.translation, ...q.map((x) => x / length)].map(Math.fround);
+            shown.forEach((x, i) => { if (x !== expected[i]) fail(`${object.name}: at frame ${k} shows ${shown}, the JSON has ${expected}`); });
+        }
         for (const object of objects) {
             const body = bodies.find((b) => b.name === object.name);
             if (!body) fail(`no body named ${object.name}`);
@@ -71,5 +89,5 @@ new GLTFLoader().parse(buffer, "", (gltf) => {
             }
         }
     }
-    console.log(`three.js ${THREE.REVISION} played ${frames.length} frames of ${objects.length} objects: ${checked} coordinates match`);
+    console.log(`three.js ${THREE.REVISION} played ${frames.length} frames of ${objects.length} objects: ${checked} coordinates match, and ${colliders.length} colliders at ${frames.length} frames`);
 }, (e) => fail(`GLTFLoader: ${e.message ?? e}`));
