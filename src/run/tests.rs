@@ -451,3 +451,23 @@ fn a_cloth_held_by_a_collider_is_at_rest() {
     let off = largest_difference(&last_positions(&r), &last_positions(&full));
     assert!(off < 0.02, "{off} m from where the cloth ends up");
 }
+
+#[test]
+fn a_mesh_collider_is_recorded_with_its_triangles() {
+    let r = run(json!({
+        "duration": 0.01, "dt": 0.005, "error_estimate": "none",
+        "bodies": [{"type": "chain", "count": 2}],
+        "colliders": [{"type": "plane"}, {"type": "mesh", "vertices": [0, 0, 0, 1, 0, 0, 0, 0, 1], "triangles": [0, 2, 1]}],
+    }));
+    assert_eq!(r.colliders.len(), 2);
+    assert_eq!(r.colliders[1].name, "collider:1");
+    assert_eq!(
+        r.colliders[1].shape,
+        ColliderShape::Mesh {
+            vertices: vec![0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0],
+            triangles: vec![[0, 2, 1]]
+        }
+    );
+    assert_eq!(r.colliders[1].frames, None);
+    assert!(r.stats.stages.contains(&"mesh"), "{:?}", r.stats.stages);
+}
