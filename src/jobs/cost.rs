@@ -63,6 +63,8 @@ pub(super) const BYTES_PER_COLLIDER_TRIANGLE: u64 = 768;
 /// Bytes a mesh collider's vertex costs: its scene numbers (as JSON values, parsed and compiled),
 /// its entry in the map that joins vertices at one position, and its pseudo-normal.
 pub(super) const BYTES_PER_COLLIDER_VERTEX: u64 = 256;
+/// Bytes a keyframe costs: its scene numbers as JSON values, parsed and compiled.
+const BYTES_PER_KEYFRAME: u64 = 512;
 /// Bytes a self-collision candidate pair takes in the pair lists.
 pub const BYTES_PER_PAIR: u64 = 8;
 /// Bytes of the self-collision hash per particle (buckets at most a quarter full, the sorted
@@ -156,6 +158,22 @@ impl Cost {
             step_work = step_work.saturating_add(tests);
             simulation_memory = simulation_memory.saturating_add(memory);
             stage("colliders", "/colliders".into(), per_step(tests), memory);
+        }
+        let moving: Vec<u64> = scene
+            .colliders
+            .iter()
+            .filter_map(|c| c.motion())
+            .map(|m| m.keyframes.as_ref().map_or(1, |keys| keys.len() as u64))
+            .collect();
+        if !moving.is_empty() {
+            // Each particle is seen from a moving collider's frame, twice, before its tests.
+            let work = particles.saturating_mul(2 * moving.len() as u64);
+            let memory = moving
+                .iter()
+                .fold(0, |sum: u64, &keys| sum.saturating_add(keys.saturating_mul(BYTES_PER_KEYFRAME)));
+            step_work = step_work.saturating_add(work);
+            simulation_memory = simulation_memory.saturating_add(memory);
+            stage("moving_colliders", "/colliders".into(), per_step(work), memory);
         }
         for (index, collider) in scene.colliders.iter().enumerate() {
             let ColliderSpec::Mesh(mesh) = collider else { continue };

@@ -11,12 +11,15 @@ use std::sync::Arc;
 
 use glam::DVec3;
 
+use super::placement::Placement;
+use super::types::MotionSpec;
 use super::types::{
     Body, ColliderSpec, ErrorEstimateName, FrameSelection, IntegratorName, OrientationName, Output,
     Precision, Scene, SpringSpec, WindModelName, WindSpec,
 };
 use crate::solver::{
-    self, Collider, IntegratorKind, IntegratorSettings, Model, Shape, SpringParams, TriangleSurface,
+    self, Collider, IntegratorKind, IntegratorSettings, Keyframe, Model, Motion, Rigid, Shape, SpringParams,
+    TriangleSurface,
 };
 
 /// Where a run's step came from.
@@ -179,17 +182,52 @@ impl Scene {
 
 fn collider(spec: &ColliderSpec) -> Collider {
     let v = DVec3::from_array;
+    let placement = spec.placement();
+    let motion = spec.motion().map(|m| motion(m, &placement));
+    // A moving collider is defined in its own frame (scaled only), which its motion places.
+    let placement = if motion.is_some() {
+        Placement { scale: placement.scale, ..Placement::default() }
+    } else {
+        placement
+    };
+    let point = |x: [f64; 3]| placement.point(v(x));
+    let s = placement.scale;
     let shape = match spec {
-        ColliderSpec::Plane(c) => Shape::Plane { point: v(c.point), normal: v(c.normal) },
-        ColliderSpec::Sphere(c) => Shape::Sphere { center: v(c.center), radius: c.radius },
-        ColliderSpec::Box(c) => Shape::Box { center: v(c.center), half_extents: v(c.half_extents) },
-        ColliderSpec::Cylinder(c) => {
-            Shape::Cylinder { center: v(c.center), radius: c.radius, height: c.height }
+        ColliderSpec::Plane(c) => {
+            Shape::Plane { point: point(c.point), normal: placement.direction(v(c.normal)) }
         }
-        ColliderSpec::Mesh(c) => Shape::Mesh { surface: Arc::new(c.surface()), thickness: c.thickness },
+        ColliderSpec::Sphere(c) => Shape::Sphere { center: point(c.center), radius: s * c.radius },
+        // Validation leaves boxes and cylinders unrotated.
+        ColliderSpec::Box(c) => Shape::Box { center: point(c.center), half_extents: s * v(c.half_extents) },
+        ColliderSpec::Cylinder(c) => {
+            Shape::Cylinder { center: point(c.center), radius: s * c.radius, height: s * c.height }
+        }
+        ColliderSpec::Mesh(c) => {
+            let mut surface = c.surface();
+            surface.vertices.iter_mut().for_each(|x| *x = placement.point(*x));
+            Shape::Mesh { surface: Arc::new(surface), thickness: c.thickness }
+        }
     };
     let (friction, restitution) = spec.surface();
-    Collider { shape, friction, restitution }
+    Collider { shape, friction, restitution, motion }
+}
+
+/// The solver's motion: keyframes as given, or velocities from the static placement.
+fn motion(spec: &MotionSpec, placement: &Placement) -> Motion {
+    let rigid = |translation: [f64; 3], rotation: [f64; 4]| Rigid {
+        translation: DVec3::from_array(translation),
+        rotation: Placement { translation, rotation, scale: 1.0 }.quaternion(),
+    };
+    match &spec.keyframes {
+        Some(keys) => Motion::Keyframes(
+            keys.iter().map(|k| Keyframe { t: k.t, transform: rigid(k.translation, k.rotation) }).collect(),
+        ),
+        None => Motion::Velocity {
+            start: rigid(placement.translation, placement.rotation),
+            velocity: DVec3::from_array(spec.velocity.unwrap_or_default()),
+            angular_velocity: DVec3::from_array(spec.angular_velocity.unwrap_or_default()),
+        },
+    }
 }
 
 fn wind(spec: &WindSpec) -> solver::WindConfig {
@@ -252,7 +290,7 @@ fn add_body(model: &mut Model, body: &Body) -> std::ops::Range<usize> {
             pins: l.pin.clone(),
         }),
         Body::Mesh(m) => model.add_mesh(&solver::Mesh {
-            vertices: m.vertex_positions(),
+            vertices: m.vertex_positions().into_iter().map(|x| m.placement().point(x)).collect(),
             triangles: m.triangle_indices(),
             mass: m.mass,
             velocity: v(m.velocity),
@@ -274,6 +312,15 @@ impl super::types::MeshColliderSpec {
 }
 
 impl super::types::MeshSpec {
+    /// Where the scene puts it.
+    pub fn placement(&self) -> super::placement::Placement {
+        super::placement::Placement {
+            translation: self.translation,
+            rotation: self.rotation,
+            scale: self.scale,
+        }
+    }
+
     /// The flat `vertices` as points.
     pub fn vertex_positions(&self) -> Vec<DVec3> {
         self.vertices.chunks_exact(3).map(|c| DVec3::new(c[0], c[1], c[2])).collect()

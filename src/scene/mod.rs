@@ -10,15 +10,19 @@
 mod compile;
 mod error;
 mod parse;
+mod placement;
 mod types;
 mod validate;
 mod whole;
 
 pub use compile::{BodyInfo, Compiled, DtSource};
 pub use error::{FieldError, SceneError};
+pub use placement::{Placement, ROTATION_NORM_TOLERANCE};
 pub use types::*;
 
 #[cfg(test)]
 mod mesh_collider_tests;
+#[cfg(test)]
+mod placement_tests;
 #[cfg(test)]
 mod tests;

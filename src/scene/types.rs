@@ -2,6 +2,7 @@
 
 use serde::Deserialize;
 
+use super::placement::Placement;
 use super::whole;
 
 /// A scene: the bodies, the forces on them, how to integrate and what to record.
@@ -442,6 +443,16 @@ pub struct MeshSpec {
     /// Pinned vertex indices.
     #[serde(default, deserialize_with = "whole::list")]
     pub pin: Vec<usize>,
+    /// Moves it after rotating, in metres (default `[0, 0, 0]`).
+    #[serde(default)]
+    pub translation: [f64; 3],
+    /// Turns it about the origin after scaling: a unit quaternion `[x, y, z, w]` (default the
+    /// identity).
+    #[serde(default = "super::placement::default_rotation")]
+    pub rotation: [f64; 4],
+    /// Scales it about the origin, a positive number (default 1).
+    #[serde(default = "super::placement::default_scale")]
+    pub scale: f64,
 }
 
 fn default_mesh_mass() -> f64 {
@@ -476,6 +487,29 @@ impl ColliderSpec {
         }
     }
 
+    /// Where the scene puts it.
+    pub fn placement(&self) -> Placement {
+        let (translation, rotation, scale) = match self {
+            Self::Plane(c) => (c.translation, c.rotation, c.scale),
+            Self::Sphere(c) => (c.translation, c.rotation, c.scale),
+            Self::Box(c) => (c.translation, c.rotation, c.scale),
+            Self::Cylinder(c) => (c.translation, c.rotation, c.scale),
+            Self::Mesh(c) => (c.translation, c.rotation, c.scale),
+        };
+        Placement { translation, rotation, scale }
+    }
+
+    /// How it moves, if it does.
+    pub fn motion(&self) -> Option<&MotionSpec> {
+        match self {
+            Self::Plane(c) => c.motion.as_ref(),
+            Self::Sphere(c) => c.motion.as_ref(),
+            Self::Box(c) => c.motion.as_ref(),
+            Self::Cylinder(c) => c.motion.as_ref(),
+            Self::Mesh(c) => c.motion.as_ref(),
+        }
+    }
+
     /// Friction and restitution.
     pub fn surface(&self) -> (f64, f64) {
         match self {
@@ -493,7 +527,7 @@ fn default_friction() -> f64 {
 }
 
 /// A plane collider: the floor by default.
-#[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct PlaneSpec {
     /// A point on the plane, in metres (default `[0, 0, 0]`).
@@ -508,6 +542,19 @@ pub struct PlaneSpec {
     /// Restitution, in [0, 1] (default 0).
     #[serde(default)]
     pub restitution: f64,
+    /// Moves it after rotating, in metres (default `[0, 0, 0]`).
+    #[serde(default)]
+    pub translation: [f64; 3],
+    /// Turns it about the origin after scaling: a unit quaternion `[x, y, z, w]` (default the
+    /// identity).
+    #[serde(default = "super::placement::default_rotation")]
+    pub rotation: [f64; 4],
+    /// Scales it about the origin, a positive number (default 1).
+    #[serde(default = "super::placement::default_scale")]
+    pub scale: f64,
+    /// How it moves (default: it stands still).
+    #[serde(default)]
+    pub motion: Option<MotionSpec>,
 }
 
 fn default_up() -> [f64; 3] {
@@ -515,7 +562,7 @@ fn default_up() -> [f64; 3] {
 }
 
 /// A sphere collider.
-#[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SphereSpec {
     /// Centre, in metres (required).
@@ -528,10 +575,23 @@ pub struct SphereSpec {
     /// Restitution, in [0, 1] (default 0).
     #[serde(default)]
     pub restitution: f64,
+    /// Moves it after rotating, in metres (default `[0, 0, 0]`).
+    #[serde(default)]
+    pub translation: [f64; 3],
+    /// Turns it about the origin after scaling: a unit quaternion `[x, y, z, w]` (default the
+    /// identity).
+    #[serde(default = "super::placement::default_rotation")]
+    pub rotation: [f64; 4],
+    /// Scales it about the origin, a positive number (default 1).
+    #[serde(default = "super::placement::default_scale")]
+    pub scale: f64,
+    /// How it moves (default: it stands still).
+    #[serde(default)]
+    pub motion: Option<MotionSpec>,
 }
 
 /// An axis-aligned box collider.
-#[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct BoxSpec {
     /// Centre, in metres (required).
@@ -544,10 +604,23 @@ pub struct BoxSpec {
     /// Restitution, in [0, 1] (default 0).
     #[serde(default)]
     pub restitution: f64,
+    /// Moves it after rotating, in metres (default `[0, 0, 0]`).
+    #[serde(default)]
+    pub translation: [f64; 3],
+    /// Turns it about the origin after scaling: a unit quaternion `[x, y, z, w]` (default the
+    /// identity).
+    #[serde(default = "super::placement::default_rotation")]
+    pub rotation: [f64; 4],
+    /// Scales it about the origin, a positive number (default 1).
+    #[serde(default = "super::placement::default_scale")]
+    pub scale: f64,
+    /// How it moves (default: it stands still).
+    #[serde(default)]
+    pub motion: Option<MotionSpec>,
 }
 
 /// A cylinder collider with its axis along y.
-#[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct CylinderSpec {
     /// The middle of its axis, in metres (required); the top is at `center[1] + height / 2`.
@@ -562,6 +635,19 @@ pub struct CylinderSpec {
     /// Restitution, in [0, 1] (default 0).
     #[serde(default)]
     pub restitution: f64,
+    /// Moves it after rotating, in metres (default `[0, 0, 0]`).
+    #[serde(default)]
+    pub translation: [f64; 3],
+    /// Turns it about the origin after scaling: a unit quaternion `[x, y, z, w]` (default the
+    /// identity).
+    #[serde(default = "super::placement::default_rotation")]
+    pub rotation: [f64; 4],
+    /// Scales it about the origin, a positive number (default 1).
+    #[serde(default = "super::placement::default_scale")]
+    pub scale: f64,
+    /// How it moves (default: it stands still).
+    #[serde(default)]
+    pub motion: Option<MotionSpec>,
 }
 
 /// A triangle-mesh collider. It is a solid when closed (every edge shared by exactly two
@@ -575,7 +661,8 @@ pub struct MeshColliderSpec {
     /// Flat vertex indices, three per triangle (required).
     #[serde(deserialize_with = "whole::list")]
     pub triangles: Vec<usize>,
-    /// The distance particles keep from the triangles, in metres, positive (default 0.005).
+    /// The distance particles keep from the triangles, in metres, positive (default 0.005); a
+    /// `scale` does not change it.
     #[serde(default = "default_mesh_thickness")]
     pub thickness: f64,
     /// Coulomb friction μ (default 0.3).
@@ -584,10 +671,57 @@ pub struct MeshColliderSpec {
     /// Restitution, in [0, 1] (default 0).
     #[serde(default)]
     pub restitution: f64,
+    /// Moves it after rotating, in metres (default `[0, 0, 0]`).
+    #[serde(default)]
+    pub translation: [f64; 3],
+    /// Turns it about the origin after scaling: a unit quaternion `[x, y, z, w]` (default the
+    /// identity).
+    #[serde(default = "super::placement::default_rotation")]
+    pub rotation: [f64; 4],
+    /// Scales it about the origin, a positive number (default 1).
+    #[serde(default = "super::placement::default_scale")]
+    pub scale: f64,
+    /// How it moves (default: it stands still).
+    #[serde(default)]
+    pub motion: Option<MotionSpec>,
 }
 
 fn default_mesh_thickness() -> f64 {
     0.005
+}
+
+/// A rigid motion: `keyframes`, or a `velocity` and `angular_velocity`.
+///
+/// Keyframes are piecewise linear in translation and slerped in rotation, held before the first
+/// and after the last; each key's transform replaces the static `translation` and `rotation` and
+/// applies to the shape as defined (after its `scale`). A velocity moves the shape from its static
+/// placement: `x(t) = translation + velocity·t + exp(angular_velocity·t)·rotation·(scale·x)`.
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MotionSpec {
+    /// Keys in strictly increasing time (at least one).
+    #[serde(default)]
+    pub keyframes: Option<Vec<KeyframeSpec>>,
+    /// Velocity, in m/s (default 0 when `angular_velocity` is given).
+    #[serde(default)]
+    pub velocity: Option<[f64; 3]>,
+    /// Angular velocity about the shape's origin, in rad/s (default 0 when `velocity` is given).
+    #[serde(default)]
+    pub angular_velocity: Option<[f64; 3]>,
+}
+
+/// One key of a motion.
+#[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct KeyframeSpec {
+    /// Time, in seconds, at least 0 (required).
+    pub t: f64,
+    /// Translation, in metres (default `[0, 0, 0]`).
+    #[serde(default)]
+    pub translation: [f64; 3],
+    /// Rotation, a unit quaternion `[x, y, z, w]` (default the identity).
+    #[serde(default = "super::placement::default_rotation")]
+    pub rotation: [f64; 4],
 }
 
 /// How wind turns into forces.

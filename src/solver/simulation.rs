@@ -30,7 +30,7 @@ use crate::solver::{normals, parallel};
 /// Every stage name a simulation or a run can report, in the order a step runs them: the
 /// forces, then the constraints and contacts. `normals` is also the per-frame normals a run's
 /// output asks for.
-pub const STAGE_NAMES: [&str; 12] = [
+pub const STAGE_NAMES: [&str; 13] = [
     "gravity",
     "drag",
     "springs",
@@ -43,6 +43,7 @@ pub const STAGE_NAMES: [&str; 12] = [
     "box",
     "cylinder",
     "mesh",
+    "moving_colliders",
 ];
 
 /// Everything about a run that is not the bodies themselves.
@@ -123,6 +124,7 @@ pub struct Simulation<T: Real> {
     strain_limit: Option<StrainLimit<T>>,
     self_collision: Option<SelfCollision<T>>,
     contacts: Option<Contacts<T>>,
+    moving_colliders: bool,
     triangles: Vec<[u32; 3]>,
     integrator: IntegratorKind,
     dt: f64,
@@ -158,15 +160,19 @@ impl<T: Real> Simulation<T> {
         let initial = diagnostics::energy(&dynamics, &state);
         let runaway_limit = stability::runaway_limit(
             initial.kinetic + initial.spring,
-            released_energy(model, config.gravity) + wind_energy(model, config.wind.as_ref()),
+            released_energy(model, config.gravity)
+                + wind_energy(model, config.wind.as_ref())
+                + collider_energy(model, &config.colliders),
         );
         let mut stages: Vec<&'static str> = dynamics.stages().collect();
         stages.extend(strain_limit.as_ref().map(|_| "strain_limit"));
         stages.extend(self_collision.as_ref().map(|_| "self_collision"));
         stages.extend(contacts.iter().flat_map(Contacts::stages));
+        stages.extend(contacts.as_ref().filter(|c| c.any_moving()).map(|_| "moving_colliders"));
         Self {
             strain_limit,
             self_collision,
+            moving_colliders: contacts.as_ref().is_some_and(Contacts::any_moving),
             contacts,
             stable_dt: stability::stable_step(model, config.drag),
             dynamics,
@@ -198,10 +204,13 @@ impl<T: Real> Simulation<T> {
         if self.interrupted() {
             return Err(StepError::Interrupted);
         }
+        let t = self.time();
         if let Some(contacts) = &mut self.contacts {
             contacts.begin_step(&self.state.positions);
+            if self.moving_colliders {
+                contacts.move_colliders(t, self.dt);
+            }
         }
-        let t = self.time();
         let sums = self
             .stepper
             .step(&mut self.state, &mut self.dynamics, t, self.h)
@@ -327,6 +336,16 @@ impl<T: Real> Simulation<T> {
 /// The kinetic energy of every particle moving with the wind at its fastest: `½ Σ m |u|²`.
 fn wind_energy(model: &Model, wind: Option<&WindConfig>) -> f64 {
     wind.map_or(0.0, |w| 0.5 * model.total_mass() * w.peak_speed().powi(2))
+}
+
+/// The kinetic energy of every particle leaving a moving collider at twice the fastest speed of
+/// its surface near the particles (a perfectly elastic bounce off a moving wall doubles the
+/// wall's speed).
+fn collider_energy(model: &Model, colliders: &[Collider]) -> f64 {
+    let reach = model.positions.iter().map(|p| p.length()).fold(1.0, f64::max);
+    let peak =
+        colliders.iter().filter_map(|c| c.motion.as_ref()).map(|m| m.peak_speed(reach)).fold(0.0, f64::max);
+    0.5 * model.total_mass() * (2.0 * peak).powi(2)
 }
 
 /// The most energy gravity can release: every particle falling the scene's extent and one metre

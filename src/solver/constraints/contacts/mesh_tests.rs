@@ -95,7 +95,12 @@ pub(crate) fn sheet(y: f64, size: f64, n: u32) -> TriangleSurface {
 }
 
 fn mesh(surface: TriangleSurface, thickness: f64, friction: f64, restitution: f64) -> Collider {
-    Collider { shape: Shape::Mesh { surface: Arc::new(surface), thickness }, friction, restitution }
+    Collider {
+        shape: Shape::Mesh { surface: Arc::new(surface), thickness },
+        friction,
+        restitution,
+        motion: None,
+    }
 }
 
 fn particle(position: DVec3, velocity: DVec3) -> Model {
@@ -315,6 +320,7 @@ fn a_dropped_particle_rebounds_from_a_mesh_floor_as_from_a_plane() {
             shape: Shape::Plane { point: DVec3::ZERO, normal: DVec3::Y },
             friction: 0.3,
             restitution: e,
+            motion: None,
         });
         assert!((floor - plane).abs() < 1e-9, "e {e}: mesh {floor}, plane {plane}");
         assert!((floor - e * e).abs() < 0.02 * e * e, "e {e}: peak {floor}");

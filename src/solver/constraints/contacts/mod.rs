@@ -45,6 +45,8 @@ pub use triangle_bvh::{LEAF_SIZE as BVH_LEAF_SIZE, TriangleBvh};
 #[cfg(test)]
 pub(crate) mod mesh_tests;
 #[cfg(test)]
+mod moving_tests;
+#[cfg(test)]
 mod tests;
 
 use glam::DVec3;
@@ -56,6 +58,7 @@ use crate::solver::forces::spring_blocks::{self as blocks, LANES};
 use crate::solver::math::real::Real;
 use crate::solver::math::vec3::Vec3;
 use crate::solver::math::vectors::Vectors;
+use crate::solver::motion::{Motion, Rigid};
 use crate::solver::parallel;
 use crate::solver::state::State;
 
@@ -140,15 +143,17 @@ impl Shape {
     }
 }
 
-/// A fixed shape with the response of its surface.
+/// A shape with the response of its surface, fixed or moving.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Collider {
-    /// Where it is.
+    /// Where it is; for a moving collider, where it is in its own frame, which its motion moves.
     pub shape: Shape,
     /// Coulomb friction coefficient `μ` (at least 0).
     pub friction: f64,
     /// Restitution `e`, in [0, 1]: the fraction of approaching normal speed a particle leaves with.
     pub restitution: f64,
+    /// How it moves, if it does.
+    pub motion: Option<Motion>,
 }
 
 /// A point on a surface and the outward unit normal there.
@@ -250,6 +255,47 @@ struct ColliderIn<T> {
     shape: ShapeIn<T>,
     friction: T,
     restitution: T,
+    motion: Option<Motion>,
+    /// For a moving collider, where the step takes it.
+    moving: Option<StepMotion>,
+}
+
+/// Where a moving collider is at the start and at the end of a step.
+#[derive(Clone, Copy, Debug)]
+struct StepMotion {
+    from: Rigid,
+    to: Rigid,
+    dt: f64,
+}
+
+impl<T: Real> ColliderIn<T> {
+    /// The contact of a particle that moved from `start` to `end` over the step, and the velocity
+    /// of the collider's surface there (zero for a fixed one). A moving collider is met in its
+    /// own frame: the particle's start as seen from where the collider was, its end as seen from
+    /// where it is, so that the relative path is tested and a moving surface sweeps up the
+    /// particles in its way.
+    fn contact(&self, start: Vec3<T>, end: Vec3<T>) -> Option<(Surface<T>, Vec3<T>)> {
+        let Some(m) = self.moving else {
+            return self.shape.contact(start, end).map(|s| (s, Vec3::ZERO));
+        };
+        let local = |frame: &Rigid, x: Vec3<T>| Vec3::from_dvec3(frame.inverse_point(x.to_dvec3()));
+        let surface = self.shape.contact(local(&m.from, start), local(&m.to, end))?;
+        let at = surface.point.to_dvec3();
+        let (now, before) = (m.to.point(at), m.from.point(at));
+        let normal = Vec3::from_dvec3(m.to.rotation * surface.normal.to_dvec3());
+        let surface_velocity = Vec3::from_dvec3((now - before) / m.dt);
+        Some((Surface { point: Vec3::from_dvec3(now), normal }, surface_velocity))
+    }
+
+    /// Where a particle at `x`, inside or on the collider where it is now, goes.
+    fn inside(&self, x: Vec3<T>) -> Option<Surface<T>> {
+        let Some(m) = self.moving else { return self.shape.inside(x) };
+        let surface = self.shape.inside(Vec3::from_dvec3(m.to.inverse_point(x.to_dvec3())))?;
+        Some(Surface {
+            point: Vec3::from_dvec3(m.to.point(surface.point.to_dvec3())),
+            normal: Vec3::from_dvec3(m.to.rotation * surface.normal.to_dvec3()),
+        })
+    }
 }
 
 /// One band's particles: their start-of-step positions, their state and inverse masses.
@@ -268,9 +314,11 @@ impl<T: Real> Band<'_, T> {
         }
         let at = |axes: [&[T]; 3]| Vec3::new(axes[0][p], axes[1][p], axes[2][p]);
         let end = at(self.positions.each_ref().map(|a| &**a));
-        let Some(surface) = c.shape.contact(at(self.start), end) else { return false };
-        let mut velocity = at(self.velocities.each_ref().map(|a| &**a));
+        let Some((surface, surface_velocity)) = c.contact(at(self.start), end) else { return false };
+        // The response acts on the velocity relative to the surface.
+        let mut velocity = at(self.velocities.each_ref().map(|a| &**a)) - surface_velocity;
         respond(&mut velocity, surface.normal, c.friction, c.restitution);
+        let velocity = velocity + surface_velocity;
         let (point, velocity) = (surface.point.to_array(), velocity.to_array());
         for (axis, (x, v)) in self.positions.iter_mut().zip(&mut self.velocities).enumerate() {
             x[p] = point[axis];
@@ -299,6 +347,8 @@ impl<T: Real> Contacts<T> {
                 shape: ShapeIn::new(&c.shape),
                 friction: T::from_f64(c.friction),
                 restitution: T::from_f64(c.restitution),
+                moving: c.motion.as_ref().map(|m| StepMotion { from: m.at(0.0), to: m.at(0.0), dt: 1.0 }),
+                motion: c.motion.clone(),
             })
             .collect();
         Some(Self { colliders, start: Vectors::zeros(particles) })
@@ -309,6 +359,20 @@ impl<T: Real> Contacts<T> {
         self.start.copy_from(positions);
     }
 
+    /// Whether any collider moves.
+    pub fn any_moving(&self) -> bool {
+        self.colliders.iter().any(|c| c.motion.is_some())
+    }
+
+    /// Moves the moving colliders through the step from time `t` to `t + dt`.
+    pub fn move_colliders(&mut self, t: f64, dt: f64) {
+        for c in &mut self.colliders {
+            if let Some(motion) = &c.motion {
+                c.moving = Some(StepMotion { from: motion.at(t), to: motion.at(t + dt), dt });
+            }
+        }
+    }
+
     /// Moves free particles that are inside a collider out onto its surface, leaving velocities
     /// alone: for a state that starts inside, and within the strain limit's sweeps.
     pub fn project_out(&self, positions: &mut Vectors<T>, inverse_masses: &[T]) {
@@ -317,7 +381,7 @@ impl<T: Real> Contacts<T> {
                 continue;
             }
             for c in &self.colliders {
-                if let Some(surface) = c.shape.inside(positions.get(p)) {
+                if let Some(surface) = c.inside(positions.get(p)) {
                     positions.set(p, surface.point);
                 }
             }
@@ -359,7 +423,8 @@ impl<T: Real> Contacts<T> {
         for block in (0..count).step_by(LANES) {
             let lanes = LANES.min(count - block);
             for c in &self.colliders {
-                let candidates = if lanes == LANES {
+                // A moving collider's particles are seen from its frame one by one.
+                let candidates = if lanes == LANES && c.moving.is_none() {
                     c.shape.reaches_lanes(band.start, band.positions.each_ref().map(|a| &**a), block)
                 } else {
                     [true; LANES]
