@@ -159,6 +159,24 @@ impl Cost {
             simulation_memory = simulation_memory.saturating_add(memory);
             stage("colliders", "/colliders".into(), per_step(tests), memory);
         }
+        let carried: u64 = scene
+            .bodies
+            .iter()
+            .filter(|b| b.pin_motion().is_some())
+            .map(|b| match b {
+                Body::Cloth(c) => c.pin.len(),
+                Body::Chain(c) => c.pin.len(),
+                Body::Lattice(l) => l.pin.len(),
+                Body::Mesh(m) => m.pin.len(),
+            } as u64)
+            .fold(0, u64::saturating_add);
+        if carried > 0 {
+            // Each pin placed every step; its rest offset kept.
+            let memory = carried.saturating_mul(32);
+            step_work = step_work.saturating_add(carried);
+            simulation_memory = simulation_memory.saturating_add(memory);
+            stage("pin_motion", "/bodies".into(), per_step(carried), memory);
+        }
         let moving: Vec<u64> = scene
             .colliders
             .iter()

@@ -116,12 +116,21 @@ impl Scene {
     /// Builds the model and plans the run.
     pub fn compile(&self) -> Compiled {
         let mut model = Model::default();
+        let mut pin_motions = Vec::new();
         let bodies = self
             .bodies
             .iter()
             .enumerate()
             .map(|(index, body)| {
                 let range = add_body(&mut model, body);
+                if let Some(spec) = body.pin_motion() {
+                    let rest = &model.positions[range.clone()];
+                    pin_motions.push(solver::PinMotion {
+                        particles: range.clone().filter(|&p| model.pinned[p]).collect(),
+                        centre: rest.iter().sum::<DVec3>() / rest.len() as f64,
+                        motion: motion(spec, &Placement::default()),
+                    });
+                }
                 BodyInfo {
                     name: body.name().map_or_else(|| format!("{}{index}", body.type_name()), str::to_string),
                     kind: body.type_name(),
@@ -151,6 +160,7 @@ impl Scene {
             colliders: self.colliders.iter().map(collider).collect(),
             strain_limit: self.strain_limit,
             self_collision: self.self_collision.map(|s| s.thickness),
+            pin_motions,
             max_self_collision_pairs: usize::MAX,
         };
         Compiled {

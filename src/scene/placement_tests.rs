@@ -154,3 +154,17 @@ fn a_moving_collider_is_defined_in_its_own_frame_and_its_motion_checked() {
         assert_eq!(pointers, expected, "{colliders}: {error}");
     }
 }
+
+#[test]
+fn a_pin_motion_carries_the_pinned_particles_about_the_rest_centroid() {
+    let doc = |pin: Value| {
+        json!({"duration": 1.0, "bodies": [{"type": "chain", "count": 3, "start": [0, 1, 0], "end": [2, 1, 0], "pin": pin,
+               "pin_motion": {"keyframes": [{"t": 0}, {"t": 1, "translation": [0, 1, 0]}]}}]})
+    };
+    let compiled = Scene::from_json(doc(json!([0])).to_string().as_bytes()).unwrap().compile();
+    let pins = &compiled.config.pin_motions[0];
+    assert_eq!((pins.particles.as_slice(), pins.centre), ([0].as_slice(), DVec3::new(1.0, 1.0, 0.0)));
+    let error = Scene::from_json(doc(json!([])).to_string().as_bytes()).unwrap_err();
+    let pointers: Vec<&str> = error.field_errors().iter().map(|e| e.pointer.as_str()).collect();
+    assert_eq!(pointers, ["/bodies/0/pin_motion"]);
+}

@@ -185,6 +185,16 @@ impl Body {
         }
     }
 
+    /// How its pinned particles move, if they do.
+    pub fn pin_motion(&self) -> Option<&MotionSpec> {
+        match self {
+            Self::Cloth(b) => b.pin_motion.as_ref(),
+            Self::Chain(b) => b.pin_motion.as_ref(),
+            Self::Lattice(b) => b.pin_motion.as_ref(),
+            Self::Mesh(b) => b.pin_motion.as_ref(),
+        }
+    }
+
     /// How many particles the body will have, computed without building it (saturating).
     pub fn particle_count(&self) -> u64 {
         match self {
@@ -303,6 +313,8 @@ pub struct ClothSpec {
     /// Pinned particles as `[i, j]`.
     #[serde(deserialize_with = "whole::list_of_arrays")]
     pub pin: Vec<[usize; 2]>,
+    /// Moves the pinned particles rigidly about the body's rest centroid (default: they stay).
+    pub pin_motion: Option<MotionSpec>,
 }
 
 impl Default for ClothSpec {
@@ -317,6 +329,7 @@ impl Default for ClothSpec {
             velocity: [0.0; 3],
             springs: GridSprings::default(),
             pin: Vec::new(),
+            pin_motion: None,
         }
     }
 }
@@ -363,6 +376,8 @@ pub struct ChainSpec {
     /// Pinned particle indices.
     #[serde(deserialize_with = "whole::list")]
     pub pin: Vec<usize>,
+    /// Moves the pinned particles rigidly about the body's rest centroid (default: they stay).
+    pub pin_motion: Option<MotionSpec>,
 }
 
 impl Default for ChainSpec {
@@ -376,6 +391,7 @@ impl Default for ChainSpec {
             velocity: [0.0; 3],
             spring: ChainSpring::default(),
             pin: Vec::new(),
+            pin_motion: None,
         }
     }
 }
@@ -402,6 +418,8 @@ pub struct LatticeSpec {
     /// Pinned particles as `[i, j, k]`.
     #[serde(deserialize_with = "whole::list_of_arrays")]
     pub pin: Vec<[usize; 3]>,
+    /// Moves the pinned particles rigidly about the body's rest centroid (default: they stay).
+    pub pin_motion: Option<MotionSpec>,
 }
 
 impl Default for LatticeSpec {
@@ -415,6 +433,7 @@ impl Default for LatticeSpec {
             velocity: [0.0; 3],
             springs: GridSprings::default(),
             pin: Vec::new(),
+            pin_motion: None,
         }
     }
 }
@@ -443,6 +462,9 @@ pub struct MeshSpec {
     /// Pinned vertex indices.
     #[serde(default, deserialize_with = "whole::list")]
     pub pin: Vec<usize>,
+    /// Moves the pinned particles rigidly about the body's rest centroid (default: they stay).
+    #[serde(default)]
+    pub pin_motion: Option<MotionSpec>,
     /// Moves it after rotating, in metres (default `[0, 0, 0]`).
     #[serde(default)]
     pub translation: [f64; 3],

@@ -232,6 +232,18 @@ impl Output {
 
 fn body_problems(p: &mut Problems, at: &str, body: &Body) {
     let field = |name: &str| format!("{at}/{name}");
+    if let Some(motion) = body.pin_motion() {
+        motion_problems(p, &field("pin_motion"), motion);
+        let pins = match body {
+            Body::Cloth(c) => c.pin.len(),
+            Body::Chain(c) => c.pin.len(),
+            Body::Lattice(l) => l.pin.len(),
+            Body::Mesh(m) => m.pin.len(),
+        };
+        if pins == 0 {
+            p.add(field("pin_motion"), "moves the pinned particles, and the body has none: give `pin`");
+        }
+    }
     match body {
         Body::Cloth(c) => {
             p.lengths(&field("size"), &c.size);

@@ -23,6 +23,7 @@ use crate::solver::interrupt::Interrupt;
 use crate::solver::math::real::Real;
 use crate::solver::math::vec3::Vec3;
 use crate::solver::model::Model;
+use crate::solver::pin_motion::{MovingPins, PinMotion};
 use crate::solver::stability::{self, Divergence, DivergenceReason};
 use crate::solver::state::State;
 use crate::solver::{normals, parallel};
@@ -30,12 +31,13 @@ use crate::solver::{normals, parallel};
 /// Every stage name a simulation or a run can report, in the order a step runs them: the
 /// forces, then the constraints and contacts. `normals` is also the per-frame normals a run's
 /// output asks for.
-pub const STAGE_NAMES: [&str; 13] = [
+pub const STAGE_NAMES: [&str; 14] = [
     "gravity",
     "drag",
     "springs",
     "normals",
     "wind",
+    "pin_motion",
     "strain_limit",
     "self_collision",
     "plane",
@@ -67,6 +69,8 @@ pub struct Config {
     pub strain_limit: Option<f64>,
     /// Self-collision thickness, in metres (positive): unjoined particles keep twice it apart.
     pub self_collision: Option<f64>,
+    /// Pinned particles carried along motions.
+    pub pin_motions: Vec<PinMotion>,
     /// The most candidate pairs self-collision may hold in one step; a step that meets more
     /// fails with [`StepError::LimitReached`].
     pub max_self_collision_pairs: usize,
@@ -85,6 +89,7 @@ impl Default for Config {
             colliders: Vec::new(),
             strain_limit: None,
             self_collision: None,
+            pin_motions: Vec::new(),
             max_self_collision_pairs: usize::MAX,
         }
     }
@@ -125,6 +130,7 @@ pub struct Simulation<T: Real> {
     self_collision: Option<SelfCollision<T>>,
     contacts: Option<Contacts<T>>,
     moving_colliders: bool,
+    moving_pins: Option<MovingPins>,
     triangles: Vec<[u32; 3]>,
     integrator: IntegratorKind,
     dt: f64,
@@ -148,6 +154,11 @@ impl<T: Real> Simulation<T> {
             positions: model.positions.iter().map(|&p| Vec3::from_dvec3(p)).collect(),
             velocities: model.velocities.iter().map(|&v| Vec3::from_dvec3(v)).collect(),
         };
+        let moving_pins = MovingPins::new(&config.pin_motions, &model.positions);
+        if let Some(pins) = &moving_pins {
+            // At rest where the motion starts, moving as it starts.
+            pins.place(&mut state, -config.dt, config.dt);
+        }
         let strain_limit = config.strain_limit.map(|limit| StrainLimit::new(limit, n));
         let self_collision = config
             .self_collision
@@ -165,6 +176,7 @@ impl<T: Real> Simulation<T> {
                 + collider_energy(model, &config.colliders),
         );
         let mut stages: Vec<&'static str> = dynamics.stages().collect();
+        stages.extend(moving_pins.as_ref().map(|_| "pin_motion"));
         stages.extend(strain_limit.as_ref().map(|_| "strain_limit"));
         stages.extend(self_collision.as_ref().map(|_| "self_collision"));
         stages.extend(contacts.iter().flat_map(Contacts::stages));
@@ -173,6 +185,7 @@ impl<T: Real> Simulation<T> {
             strain_limit,
             self_collision,
             moving_colliders: contacts.as_ref().is_some_and(Contacts::any_moving),
+            moving_pins,
             contacts,
             stable_dt: stability::stable_step(model, config.drag),
             dynamics,
@@ -217,6 +230,10 @@ impl<T: Real> Simulation<T> {
             .map_err(|_| StepError::Interrupted)?;
         let inverse_masses = &self.dynamics.inverse_masses;
         let mut moved = false;
+        if let Some(pins) = &self.moving_pins {
+            pins.place(&mut self.state, t, self.dt);
+            moved = true;
+        }
         if let Some(limit) = &mut self.strain_limit {
             let contacts = self.contacts.as_ref();
             moved |= limit.apply(&mut self.state, &self.dynamics.springs, inverse_masses, contacts, self.h);
@@ -238,8 +255,10 @@ impl<T: Real> Simulation<T> {
         self.steps_taken += 1;
         // The integrator's sums describe the state it left, valid unless a later stage could
         // have changed it.
-        let later_stages =
-            self.strain_limit.is_some() || self.self_collision.is_some() || self.contacts.is_some();
+        let later_stages = self.strain_limit.is_some()
+            || self.self_collision.is_some()
+            || self.contacts.is_some()
+            || self.moving_pins.is_some();
         self.watch(sums.filter(|_| !later_stages)).map_err(StepError::Diverged)
     }
 
