@@ -96,6 +96,7 @@ fn every_example_runs_as_drape_run_runs_it() {
         "drape_mesh_sphere.json",
         "fast_particle_sheet.json",
         "swept_ball.json",
+        "tablecloth_pull.json",
     ] {
         assert!(names.iter().any(|n| n == name), "examples/{name} is missing");
     }
@@ -123,6 +124,7 @@ fn every_example_runs_as_drape_run_runs_it() {
             "drape_mesh_sphere.json" => &["gravity", "drag", "springs", "mesh", "plane"],
             "fast_particle_sheet.json" => &["gravity", "springs", "mesh"],
             "swept_ball.json" => &["gravity", "drag", "springs", "sphere", "moving_colliders"],
+            "tablecloth_pull.json" => &["gravity", "drag", "springs", "pin_motion", "box", "plane"],
             _ => continue,
         };
         assert_eq!(stages, expected, "{name}");
@@ -251,6 +253,22 @@ fn a_ball_swept_through_a_hanging_cloth_carries_it_and_never_holds_a_particle_in
     // pushes the cloth ahead of it: the cloth is carried well past where it hung.
     assert!(furthest > 0.2, "the cloth reached only z = {furthest}");
     assert!(sim.state().positions.iter().all(|x| x.is_finite()));
+}
+
+#[test]
+fn a_tablecloth_pulled_by_two_pins_leaves_the_table() {
+    let compiled = scene("tablecloth_pull.json").compile();
+    let rest = compiled.model.positions.clone();
+    let sim = run_checked(&compiled, |_| {});
+    let x = positions(&sim);
+    // The pins (the middle of the edge at x = 0.5) went 2 m along +x, and are held there.
+    for p in [7 * 16 + 15, 8 * 16 + 15] {
+        assert!((x[p] - (rest[p] + DVec3::new(2.0, 0.0, 0.0))).length() < 1e-9, "pin {p} at {}", x[p]);
+    }
+    // The cloth followed them off the table (its top spans x from -0.5 to 0.5).
+    let centre = mean(&x);
+    assert!(centre.x > 0.9, "the cloth's centre is still at {centre}");
+    assert!(x.iter().all(|p| p.x > 0.5), "a particle is still over the table");
 }
 
 #[test]

@@ -69,7 +69,8 @@ fn collider_type_errors_point_into_the_collider() {
         errors(r#""colliders": [{"type": "plane"}, {"type": "cone"}]"#),
         [(
             "/colliders/1/type".to_string(),
-            "unknown collider type `cone`: expected `plane`, `sphere`, `box` or `cylinder`".to_string()
+            "unknown collider type `cone`: expected `plane`, `sphere`, `box`, `cylinder` or `mesh`"
+                .to_string()
         )]
     );
     assert_eq!(pointers(r#""colliders": [{"center": [0, 0, 0]}]"#), ["/colliders/0/type"]);
