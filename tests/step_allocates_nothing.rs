@@ -109,7 +109,17 @@ fn allocations_stepping<T: Real>(
     let compiled = scene.compile();
     let mut simulation = Simulation::<T>::new(&compiled.model, &compiled.config);
     if stages == ALL_STAGES[0] {
-        for stage in ["wind", "strain_limit", "self_collision", "plane", "sphere", "box", "cylinder"] {
+        for stage in [
+            "wind",
+            "strain_limit",
+            "self_collision",
+            "plane",
+            "sphere",
+            "box",
+            "cylinder",
+            "mesh",
+            "moving_colliders",
+        ] {
             assert!(simulation.stages().contains(&stage), "{stage} is not among {:?}", simulation.stages());
         }
     }
