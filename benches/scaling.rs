@@ -30,7 +30,7 @@ fn cloth(n: usize) -> Model {
 }
 
 fn config(n: usize) -> Config {
-    let collider = |shape| Collider { shape, friction: DEFAULT_FRICTION, restitution: 0.0 };
+    let collider = |shape| Collider { shape, friction: DEFAULT_FRICTION, restitution: 0.0, motion: None };
     Config {
         integrator: IntegratorKind::SymplecticEuler,
         dt: match n {

@@ -54,7 +54,7 @@ fn every_example_is_admitted_under_the_default_limits() {
         .into_iter()
         .filter(|p| p.extension().is_some_and(|e| e == "json"))
         .collect();
-    assert_eq!(examples.len(), 12);
+    assert_eq!(examples.len(), 17);
     for path in examples {
         let plan = check_untrusted(&std::fs::read(&path).unwrap(), &Limits::default())
             .unwrap_or_else(|e| panic!("{}: {e}", path.display()));

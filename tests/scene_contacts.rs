@@ -32,7 +32,7 @@ fn defaults_fill_in_friction_restitution_the_floor_and_the_gust() {
         .as_bytes(),
     )
     .unwrap();
-    let ColliderSpec::Plane(plane) = scene.colliders[0] else { panic!("{:?}", scene.colliders[0]) };
+    let ColliderSpec::Plane(plane) = &scene.colliders[0] else { panic!("{:?}", scene.colliders[0]) };
     assert_eq!(
         (plane.point, plane.normal, plane.friction, plane.restitution),
         ([0.0; 3], [0.0, 1.0, 0.0], 0.3, 0.0)
@@ -69,7 +69,8 @@ fn collider_type_errors_point_into_the_collider() {
         errors(r#""colliders": [{"type": "plane"}, {"type": "cone"}]"#),
         [(
             "/colliders/1/type".to_string(),
-            "unknown collider type `cone`: expected `plane`, `sphere`, `box` or `cylinder`".to_string()
+            "unknown collider type `cone`: expected `plane`, `sphere`, `box`, `cylinder` or `mesh`"
+                .to_string()
         )]
     );
     assert_eq!(pointers(r#""colliders": [{"center": [0, 0, 0]}]"#), ["/colliders/0/type"]);

@@ -51,13 +51,17 @@ fn allocations() -> usize {
     ALLOCATIONS.load(Ordering::SeqCst)
 }
 
-/// Every stage a scene can switch on: colliders of each shape, wind of both models with gusts,
-/// strain limiting and self-collision.
+/// Every stage a scene can switch on: colliders of each shape, fixed and moving, wind of both
+/// models with gusts, strain limiting and self-collision.
 const ALL_STAGES: [&str; 3] = [
     r#""colliders": [{"type": "plane", "point": [0, 0.9, 0], "normal": [0, 1, 0]},
                      {"type": "sphere", "center": [0, 0.7, 0], "radius": 0.25},
                      {"type": "box", "center": [0.3, 0.8, 0], "half_extents": [0.1, 0.1, 0.1]},
-                     {"type": "cylinder", "center": [-0.3, 0.8, 0], "radius": 0.1, "height": 0.2}],
+                     {"type": "cylinder", "center": [-0.3, 0.8, 0], "radius": 0.1, "height": 0.2},
+                     {"type": "mesh", "vertices": [-1, 0.85, -1, 1, 0.85, -1, 1, 0.85, 1, -1, 0.85, 1], "triangles": [0, 2, 1, 0, 3, 2],
+                      "motion": {"velocity": [0, 0.1, 0], "angular_velocity": [0, 0.5, 0]}},
+                     {"type": "sphere", "center": [0, 0, 0], "radius": 0.1,
+                      "motion": {"keyframes": [{"t": 0, "translation": [0.2, 0.9, 0]}, {"t": 1, "translation": [-0.2, 0.9, 0]}]}}],
        "wind": {"model": "aerodynamic", "velocity": [2, 0, 1], "gust": {"amplitude": 0.5, "frequency": 1, "wavelength": 1}},
        "strain_limit": 0.1, "self_collision": {"thickness": 0.01}"#,
     r#""wind": {"model": "viscous", "velocity": [2, 0, 1]}"#,
@@ -105,7 +109,17 @@ fn allocations_stepping<T: Real>(
     let compiled = scene.compile();
     let mut simulation = Simulation::<T>::new(&compiled.model, &compiled.config);
     if stages == ALL_STAGES[0] {
-        for stage in ["wind", "strain_limit", "self_collision", "plane", "sphere", "box", "cylinder"] {
+        for stage in [
+            "wind",
+            "strain_limit",
+            "self_collision",
+            "plane",
+            "sphere",
+            "box",
+            "cylinder",
+            "mesh",
+            "moving_colliders",
+        ] {
             assert!(simulation.stages().contains(&stage), "{stage} is not among {:?}", simulation.stages());
         }
     }

@@ -8,16 +8,21 @@ use serde_json::{Value, json};
 pub const EXAMPLES: &[(&str, &str)] = &[
     ("cantilever", include_str!("../../examples/cantilever.json")),
     ("chain", include_str!("../../examples/chain.json")),
+    ("drape_mesh_sphere", include_str!("../../examples/drape_mesh_sphere.json")),
     ("drape_sphere", include_str!("../../examples/drape_sphere.json")),
     ("drape_sphere_explicit", include_str!("../../examples/drape_sphere_explicit.json")),
     ("drape_tester", include_str!("../../examples/drape_tester.json")),
+    ("drape_torus", include_str!("../../examples/drape_torus.json")),
+    ("fast_particle_sheet", include_str!("../../examples/fast_particle_sheet.json")),
     ("flag", include_str!("../../examples/flag.json")),
     ("hanging_cloth", include_str!("../../examples/hanging_cloth.json")),
     ("jelly_cube", include_str!("../../examples/jelly_cube.json")),
     ("self_collision", include_str!("../../examples/self_collision.json")),
     ("single_spring", include_str!("../../examples/single_spring.json")),
     ("strain_limited", include_str!("../../examples/strain_limited.json")),
+    ("swept_ball", include_str!("../../examples/swept_ball.json")),
     ("tablecloth", include_str!("../../examples/tablecloth.json")),
+    ("tablecloth_pull", include_str!("../../examples/tablecloth_pull.json")),
 ];
 
 /// `GET /examples`: `{"examples": [{"name", "scene"}, ...]}`, by name.

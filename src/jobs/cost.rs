@@ -14,7 +14,10 @@
 //! integrator and stage, stays under the estimate plus [`MEMORY_RESERVE`](crate::config::MEMORY_RESERVE).
 
 use crate::run::{MAX_ROW_CROSSINGS_PER_TRIANGLE, MAX_ROWS};
-use crate::scene::{Body, ClothShape, Compiled, Field, FrameSelection, IntegratorName, Precision, Scene};
+use crate::scene::{
+    Body, ClothShape, ColliderSpec, Compiled, Field, FrameSelection, IntegratorName, MeshColliderSpec, Precision,
+    Scene,
+};
 use crate::solver::{WindModel, candidate_pairs};
 
 use super::record::Plan;
@@ -60,6 +63,15 @@ fn simulation_bytes_per_grid_spring(integrator: IntegratorName) -> u64 {
 const SIMULATION_BYTES_PER_LISTED_SPRING: u64 = 224;
 /// Bytes a collider costs: its scene document, its parsed and compiled forms and the stage's.
 const BYTES_PER_COLLIDER: u64 = 2048;
+/// Bytes a mesh collider's triangle costs: its scene numbers (parsed and compiled), its corners
+/// and normals in the hierarchy, the hierarchy's nodes, the pseudo-normals of a closed mesh,
+/// and the topology's hash maps while it is built.
+pub(super) const BYTES_PER_COLLIDER_TRIANGLE: u64 = 768;
+/// Bytes a mesh collider's vertex costs: its scene numbers (as JSON values, parsed and compiled),
+/// its entry in the map that joins vertices at one position, and its pseudo-normal.
+pub(super) const BYTES_PER_COLLIDER_VERTEX: u64 = 256;
+/// Bytes a keyframe costs: its scene numbers as JSON values, parsed and compiled.
+const BYTES_PER_KEYFRAME: u64 = 512;
 /// Bytes a self-collision candidate pair takes in the pair lists.
 pub const BYTES_PER_PAIR: u64 = 8;
 /// Bytes of the self-collision hash per particle (buckets at most a quarter full, the sorted
@@ -169,6 +181,47 @@ impl Cost {
             simulation_memory = simulation_memory.saturating_add(memory);
             stage("colliders", "/colliders".into(), per_step(tests), memory);
         }
+        let carried: u64 = scene
+            .bodies
+            .iter()
+            .filter(|b| b.pin_motion().is_some())
+            .map(|b| match b {
+                Body::Cloth(c) => c.pin.len(),
+                Body::Chain(c) => c.pin.len(),
+                Body::Lattice(l) => l.pin.len(),
+                Body::Mesh(m) => m.pin.len(),
+            } as u64)
+            .fold(0, u64::saturating_add);
+        if carried > 0 {
+            // Each pin placed every step; its rest offset kept.
+            let memory = carried.saturating_mul(32);
+            step_work = step_work.saturating_add(carried);
+            simulation_memory = simulation_memory.saturating_add(memory);
+            stage("pin_motion", "/bodies".into(), per_step(carried), memory);
+        }
+        let moving: Vec<u64> = scene
+            .colliders
+            .iter()
+            .filter_map(|c| c.motion())
+            .map(|m| m.keyframes.as_ref().map_or(1, |keys| keys.len() as u64))
+            .collect();
+        if !moving.is_empty() {
+            // Each particle is seen from a moving collider's frame, twice, before its tests.
+            let work = particles.saturating_mul(2 * moving.len() as u64);
+            let memory = moving
+                .iter()
+                .fold(0, |sum: u64, &keys| sum.saturating_add(keys.saturating_mul(BYTES_PER_KEYFRAME)));
+            step_work = step_work.saturating_add(work);
+            simulation_memory = simulation_memory.saturating_add(memory);
+            stage("moving_colliders", "/colliders".into(), per_step(work), memory);
+        }
+        for (index, collider) in scene.colliders.iter().enumerate() {
+            let ColliderSpec::Mesh(mesh) = collider else { continue };
+            let (work, memory) = mesh_collider(mesh, particles);
+            step_work = step_work.saturating_add(work);
+            simulation_memory = simulation_memory.saturating_add(memory);
+            stage("mesh", format!("/colliders/{index}/triangles"), per_step(work), memory);
+        }
         if let Some(wind) = &compiled.config.wind {
             let work = match wind.model {
                 WindModel::Viscous => triangles.saturating_add(particles),
@@ -257,6 +310,19 @@ impl Cost {
     pub fn largest(&self, measure: fn(&StageCost) -> u64) -> Option<&StageCost> {
         self.stages.iter().max_by_key(|s| measure(s))
     }
+}
+
+/// A mesh collider's work per step and memory: each particle walks the hierarchy twice (its
+/// path, then its nearest triangle), each walk counted as the tree's depth in node tests plus a
+/// leaf of triangles; the memory is the hierarchy and what building it holds.
+fn mesh_collider(mesh: &MeshColliderSpec, particles: u64) -> (u64, u64) {
+    let triangles = (mesh.triangles.len() / 3) as u64;
+    let depth = u64::from(triangles.max(1).ilog2()) + 1;
+    let per_particle = 2 * (depth + crate::solver::BVH_LEAF_SIZE as u64);
+    let memory = triangles
+        .saturating_mul(BYTES_PER_COLLIDER_TRIANGLE)
+        .saturating_add(((mesh.vertices.len() / 3) as u64).saturating_mul(BYTES_PER_COLLIDER_VERTEX));
+    (particles.saturating_mul(per_particle), memory)
 }
 
 /// The size field of the body with the most particles.

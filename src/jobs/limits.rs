@@ -10,6 +10,8 @@
 
 use crate::scene::{Body, Compiled, FieldError, Scene};
 
+#[cfg(test)]
+use super::cost::{BYTES_PER_COLLIDER_TRIANGLE, BYTES_PER_COLLIDER_VERTEX};
 use super::cost::{BYTES_PER_PAIR, Cost, companion_steps, recorded, size_field};
 use super::record::Plan;
 
@@ -313,6 +315,28 @@ mod tests {
         let errors = limits.admit(&scene(&json)).unwrap_err();
         assert_eq!(pointers(&errors), ["/colliders"]);
         assert!(errors[0].detail.contains("1024000000 of them for colliders"), "{}", errors[0].detail);
+    }
+
+    #[test]
+    fn a_mesh_collider_costs_its_walks_and_its_hierarchy_and_is_refused_at_its_triangles() {
+        // A strip of 1,000 triangles: a hierarchy 10 levels deep.
+        let vertices: Vec<String> = (0..1002).map(|i| format!("{},0,{}", i / 2, i % 2)).collect();
+        let triangles: Vec<String> = (0..1000).map(|t| format!("{},{},{}", t, t + 1, t + 2)).collect();
+        let json = format!(
+            r#"{{"duration":0.1,"dt":0.001,"error_estimate":"none","bodies":[{{"type":"cloth","resolution":[4,4]}}],
+                "colliders":[{{"type":"plane"}},{{"type":"mesh","vertices":[{}],"triangles":[{}]}}]}}"#,
+            vertices.join(","),
+            triangles.join(",")
+        );
+        let admitted = Limits::default().admit(&scene(&json)).unwrap();
+        let mesh = admitted.cost.stages.iter().find(|s| s.stage == "mesh").unwrap();
+        assert_eq!(mesh.pointer, "/colliders/1/triangles");
+        // Two walks of ⌊log₂ 1000⌋ + 1 = 10 levels and a leaf of 4, per particle and step.
+        assert_eq!(mesh.work, 16 * 2 * (10 + 4) * 100);
+        assert_eq!(mesh.memory, 1000 * BYTES_PER_COLLIDER_TRIANGLE + 1002 * BYTES_PER_COLLIDER_VERTEX);
+        let tight = Limits { max_memory: admitted.cost.memory() - 1, ..Limits::default() };
+        let errors = tight.admit(&scene(&json)).unwrap_err();
+        assert_eq!(pointers(&errors), ["/colliders/1/triangles"]);
     }
 
     #[test]

@@ -88,17 +88,21 @@ impl RecordedCollider {
 
     /// The solver's collider at `index` in the scene, standing still.
     pub fn from_solver(index: usize, collider: &Collider) -> Self {
-        let shape = match collider.shape {
+        let shape = match &collider.shape {
             Shape::Plane { point, normal } => {
                 ColliderShape::Plane { point: point.to_array(), normal: normal.to_array() }
             }
-            Shape::Sphere { center, radius } => ColliderShape::Sphere { center: center.to_array(), radius },
+            &Shape::Sphere { center, radius } => ColliderShape::Sphere { center: center.to_array(), radius },
             Shape::Box { center, half_extents } => {
                 ColliderShape::Box { center: center.to_array(), half_extents: half_extents.to_array() }
             }
-            Shape::Cylinder { center, radius, height } => {
+            &Shape::Cylinder { center, radius, height } => {
                 ColliderShape::Cylinder { center: center.to_array(), radius, height }
             }
+            Shape::Mesh { surface, .. } => ColliderShape::Mesh {
+                vertices: surface.vertices.iter().flat_map(|v| v.to_array()).collect(),
+                triangles: surface.triangles.clone(),
+            },
         };
         Self { name: Self::name_of(index), shape, frames: None }
     }

@@ -319,7 +319,7 @@ where
             bodies: compiled.bodies.clone(),
             selection: compiled.output.frames,
             frames: Frames {
-                times: f.times,
+                times: f.times.clone(),
                 positions: f.positions.map(Samples::from),
                 velocities: f.velocities.map(Samples::from),
                 normals: f.normals.map(Samples::from),
@@ -331,7 +331,22 @@ where
                 .colliders
                 .iter()
                 .enumerate()
-                .map(|(index, collider)| RecordedCollider::from_solver(index, collider))
+                .map(|(index, collider)| {
+                    let mut recorded = RecordedCollider::from_solver(index, collider);
+                    recorded.frames = collider.motion.as_ref().map(|m| {
+                        f.times
+                            .iter()
+                            .map(|&t| {
+                                let at = m.at(t);
+                                RigidTransform {
+                                    translation: at.translation.to_array(),
+                                    rotation: at.rotation.to_array(),
+                                }
+                            })
+                            .collect()
+                    });
+                    recorded
+                })
                 .collect(),
             has_final,
             stats,

@@ -474,3 +474,49 @@ fn a_cloth_held_by_a_collider_is_at_rest() {
     let off = largest_difference(&last_positions(&r), &last_positions(&full));
     assert!(off < 0.02, "{off} m from where the cloth ends up");
 }
+
+#[test]
+fn a_mesh_collider_is_recorded_with_its_triangles() {
+    let r = run(json!({
+        "duration": 0.01, "dt": 0.005, "error_estimate": "none",
+        "bodies": [{"type": "chain", "count": 2}],
+        "colliders": [{"type": "plane"}, {"type": "mesh", "vertices": [0, 0, 0, 1, 0, 0, 0, 0, 1], "triangles": [0, 2, 1]}],
+    }));
+    assert_eq!(r.colliders.len(), 2);
+    assert_eq!(r.colliders[1].name, "collider:1");
+    assert_eq!(
+        r.colliders[1].shape,
+        ColliderShape::Mesh {
+            vertices: vec![0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0],
+            triangles: vec![[0, 2, 1]]
+        }
+    );
+    assert_eq!(r.colliders[1].frames, None);
+    assert!(r.stats.stages.contains(&"mesh"), "{:?}", r.stats.stages);
+}
+
+#[test]
+fn a_moving_collider_carries_its_transform_at_every_frame() {
+    let r = run(json!({
+        "duration": 1.0, "dt": 0.01, "error_estimate": "none", "output": {"fps": 4},
+        "bodies": [{"type": "chain", "count": 2, "start": [0, 5, 0], "end": [1, 5, 0]}],
+        "colliders": [
+            {"type": "plane"},
+            {"type": "sphere", "center": [0, 0, 0], "radius": 0.1,
+             "motion": {"keyframes": [{"t": 0, "translation": [0, 0, 0]}, {"t": 0.5, "translation": [2, 0, 0], "rotation": [0, 1, 0, 0]}]}},
+        ],
+    }));
+    assert_eq!(r.colliders[0].frames, None);
+    let frames = r.colliders[1].frames.as_ref().unwrap();
+    assert_eq!(frames.len(), r.frames.times.len());
+    // Frames at 0, 0.25, 0.5, 0.75, 1 s: halfway, then at the last key and held there.
+    assert_eq!(r.frames.times, [0.0, 0.25, 0.5, 0.75, 1.0]);
+    assert_eq!(frames[0].translation, [0.0, 0.0, 0.0]);
+    assert!((frames[1].translation[0] - 1.0).abs() < 1e-15);
+    // Half of a half turn about y: a quarter turn.
+    let half = std::f64::consts::FRAC_1_SQRT_2;
+    let rotation = frames[1].rotation;
+    assert!((rotation[1] - half).abs() < 1e-12 && (rotation[3] - half).abs() < 1e-12, "{rotation:?}");
+    assert_eq!(frames[4].translation, [2.0, 0.0, 0.0]);
+    assert!(r.stats.stages.contains(&"moving_colliders"), "{:?}", r.stats.stages);
+}

@@ -7,14 +7,21 @@
 //! takes a quarter of the frame interval, or that half-bound if it is larger. A scene with
 //! nothing that bounds the step (no springs, no drag) also takes a quarter of the frame interval.
 
+use std::sync::Arc;
+
 use glam::DVec3;
 
 use super::drape_tester::DrapeTester;
+use super::placement::Placement;
+use super::types::MotionSpec;
 use super::types::{
     Body, ClothShape, ColliderSpec, ErrorEstimateName, FrameSelection, IntegratorName, OrientationName,
     Output, Precision, Scene, SpringSpec, WindModelName, WindSpec,
 };
-use crate::solver::{self, Collider, IntegratorKind, IntegratorSettings, Model, Shape, SpringParams};
+use crate::solver::{
+    self, Collider, IntegratorKind, IntegratorSettings, Keyframe, Model, Motion, Rigid, Shape, SpringParams,
+    TriangleSurface,
+};
 
 /// Where a run's step came from.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -110,6 +117,7 @@ impl Scene {
     pub fn compile(&self) -> Compiled {
         let mut model = Model::default();
         let mut body_triangles = Vec::with_capacity(self.bodies.len());
+        let mut pin_motions = Vec::new();
         let bodies = self
             .bodies
             .iter()
@@ -118,6 +126,14 @@ impl Scene {
                 let first_triangle = model.triangles.len();
                 let range = add_body(&mut model, body);
                 body_triangles.push(first_triangle..model.triangles.len());
+                if let Some(spec) = body.pin_motion() {
+                    let rest = &model.positions[range.clone()];
+                    pin_motions.push(solver::PinMotion {
+                        particles: range.clone().filter(|&p| model.pinned[p]).collect(),
+                        centre: rest.iter().sum::<DVec3>() / rest.len() as f64,
+                        motion: motion(spec, &Placement::default()),
+                    });
+                }
                 BodyInfo {
                     name: body.name().map_or_else(|| format!("{}{index}", body.type_name()), str::to_string),
                     kind: body.type_name(),
@@ -148,6 +164,7 @@ impl Scene {
             colliders: self.colliders.iter().map(collider).collect(),
             strain_limit: self.strain_limit,
             self_collision: self.self_collision.map(|s| s.thickness),
+            pin_motions,
             max_self_collision_pairs: usize::MAX,
         };
         Compiled {
@@ -180,16 +197,52 @@ impl Scene {
 
 fn collider(spec: &ColliderSpec) -> Collider {
     let v = DVec3::from_array;
-    let shape = match *spec {
-        ColliderSpec::Plane(c) => Shape::Plane { point: v(c.point), normal: v(c.normal) },
-        ColliderSpec::Sphere(c) => Shape::Sphere { center: v(c.center), radius: c.radius },
-        ColliderSpec::Box(c) => Shape::Box { center: v(c.center), half_extents: v(c.half_extents) },
+    let placement = spec.placement();
+    let motion = spec.motion().map(|m| motion(m, &placement));
+    // A moving collider is defined in its own frame (scaled only), which its motion places.
+    let placement = if motion.is_some() {
+        Placement { scale: placement.scale, ..Placement::default() }
+    } else {
+        placement
+    };
+    let point = |x: [f64; 3]| placement.point(v(x));
+    let s = placement.scale;
+    let shape = match spec {
+        ColliderSpec::Plane(c) => {
+            Shape::Plane { point: point(c.point), normal: placement.direction(v(c.normal)) }
+        }
+        ColliderSpec::Sphere(c) => Shape::Sphere { center: point(c.center), radius: s * c.radius },
+        // Validation leaves boxes and cylinders unrotated.
+        ColliderSpec::Box(c) => Shape::Box { center: point(c.center), half_extents: s * v(c.half_extents) },
         ColliderSpec::Cylinder(c) => {
-            Shape::Cylinder { center: v(c.center), radius: c.radius, height: c.height }
+            Shape::Cylinder { center: point(c.center), radius: s * c.radius, height: s * c.height }
+        }
+        ColliderSpec::Mesh(c) => {
+            let mut surface = c.surface();
+            surface.vertices.iter_mut().for_each(|x| *x = placement.point(*x));
+            Shape::Mesh { surface: Arc::new(surface), thickness: c.thickness }
         }
     };
     let (friction, restitution) = spec.surface();
-    Collider { shape, friction, restitution }
+    Collider { shape, friction, restitution, motion }
+}
+
+/// The solver's motion: keyframes as given, or velocities from the static placement.
+fn motion(spec: &MotionSpec, placement: &Placement) -> Motion {
+    let rigid = |translation: [f64; 3], rotation: [f64; 4]| Rigid {
+        translation: DVec3::from_array(translation),
+        rotation: Placement { translation, rotation, scale: 1.0 }.quaternion(),
+    };
+    match &spec.keyframes {
+        Some(keys) => Motion::Keyframes(
+            keys.iter().map(|k| Keyframe { t: k.t, transform: rigid(k.translation, k.rotation) }).collect(),
+        ),
+        None => Motion::Velocity {
+            start: rigid(placement.translation, placement.rotation),
+            velocity: DVec3::from_array(spec.velocity.unwrap_or_default()),
+            angular_velocity: DVec3::from_array(spec.angular_velocity.unwrap_or_default()),
+        },
+    }
 }
 
 fn wind(spec: &WindSpec) -> solver::WindConfig {
@@ -249,7 +302,7 @@ fn add_body(model: &mut Model, body: &Body) -> std::ops::Range<usize> {
         }),
         Body::Mesh(m) => {
             let mesh = solver::Mesh {
-                vertices: m.vertex_positions(),
+                vertices: m.vertex_positions().into_iter().map(|x| m.placement().point(x)).collect(),
                 triangles: m.triangle_indices(),
                 mass: m.mass,
                 velocity: v(m.velocity),
@@ -284,7 +337,26 @@ fn cloth(c: &super::types::ClothSpec) -> solver::Cloth {
     }
 }
 
+impl super::types::MeshColliderSpec {
+    /// The triangles as the solver takes them (the indices are checked to fit).
+    pub fn surface(&self) -> TriangleSurface {
+        TriangleSurface {
+            vertices: self.vertices.chunks_exact(3).map(|c| DVec3::new(c[0], c[1], c[2])).collect(),
+            triangles: self.triangles.chunks_exact(3).map(|c| [c[0], c[1], c[2]].map(|i| i as u32)).collect(),
+        }
+    }
+}
+
 impl super::types::MeshSpec {
+    /// Where the scene puts it.
+    pub fn placement(&self) -> super::placement::Placement {
+        super::placement::Placement {
+            translation: self.translation,
+            rotation: self.rotation,
+            scale: self.scale,
+        }
+    }
+
     /// The flat `vertices` as points.
     pub fn vertex_positions(&self) -> Vec<DVec3> {
         self.vertices.chunks_exact(3).map(|c| DVec3::new(c[0], c[1], c[2])).collect()

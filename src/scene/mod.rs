@@ -13,6 +13,7 @@ mod drape_tester;
 mod error;
 mod fabrics;
 mod parse;
+mod placement;
 mod types;
 mod validate;
 mod whole;
@@ -22,7 +23,12 @@ pub use disk::DEFAULT_DIAMETER;
 pub use drape_tester::DrapeTester;
 pub use error::{FieldError, SceneError};
 pub use fabrics::{DEFAULT_DAMPING_TIME, FabricSpec};
+pub use placement::{Placement, ROTATION_NORM_TOLERANCE};
 pub use types::*;
 
+#[cfg(test)]
+mod mesh_collider_tests;
+#[cfg(test)]
+mod placement_tests;
 #[cfg(test)]
 mod tests;

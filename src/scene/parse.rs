@@ -66,7 +66,7 @@ impl Scene {
 }
 
 const BODY_TYPES: &str = "`cloth`, `chain`, `lattice` or `mesh`";
-const COLLIDER_TYPES: &str = "`plane`, `sphere`, `box` or `cylinder`";
+const COLLIDER_TYPES: &str = "`plane`, `sphere`, `box`, `cylinder` or `mesh`";
 
 /// Takes the `type` out of an object that must have one.
 fn take_type(pointer: &str, value: &mut Value, what: &str, types: &str) -> Result<String, FieldError> {
@@ -87,6 +87,7 @@ fn read_collider(pointer: &str, mut value: Value) -> Result<ColliderSpec, FieldE
         "sphere" => read(pointer, value).map(ColliderSpec::Sphere),
         "box" => read(pointer, value).map(ColliderSpec::Box),
         "cylinder" => read(pointer, value).map(ColliderSpec::Cylinder),
+        "mesh" => read(pointer, value).map(ColliderSpec::Mesh),
         other => Err(FieldError::new(
             format!("{pointer}/type"),
             format!("unknown collider type `{other}`: expected {COLLIDER_TYPES}"),

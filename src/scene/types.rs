@@ -3,6 +3,7 @@
 use serde::Deserialize;
 
 use super::fabrics::FabricSpec;
+use super::placement::Placement;
 use super::whole;
 
 /// A scene: the bodies, the forces on them, how to integrate and what to record.
@@ -182,6 +183,16 @@ impl Body {
             Self::Chain(b) => b.name.as_deref(),
             Self::Lattice(b) => b.name.as_deref(),
             Self::Mesh(b) => b.name.as_deref(),
+        }
+    }
+
+    /// How its pinned particles move, if they do.
+    pub fn pin_motion(&self) -> Option<&MotionSpec> {
+        match self {
+            Self::Cloth(b) => b.pin_motion.as_ref(),
+            Self::Chain(b) => b.pin_motion.as_ref(),
+            Self::Lattice(b) => b.pin_motion.as_ref(),
+            Self::Mesh(b) => b.pin_motion.as_ref(),
         }
     }
 
@@ -372,6 +383,8 @@ pub struct ClothSpec {
     /// Pinned particles as `[i, j]`.
     #[serde(deserialize_with = "whole::list_of_arrays")]
     pub pin: Vec<[usize; 2]>,
+    /// Moves the pinned particles rigidly about the body's rest centroid (default: they stay).
+    pub pin_motion: Option<MotionSpec>,
 }
 
 impl Default for ClothSpec {
@@ -390,6 +403,7 @@ impl Default for ClothSpec {
             material: None,
             bending_model: None,
             pin: Vec::new(),
+            pin_motion: None,
         }
     }
 }
@@ -436,6 +450,8 @@ pub struct ChainSpec {
     /// Pinned particle indices.
     #[serde(deserialize_with = "whole::list")]
     pub pin: Vec<usize>,
+    /// Moves the pinned particles rigidly about the body's rest centroid (default: they stay).
+    pub pin_motion: Option<MotionSpec>,
 }
 
 impl Default for ChainSpec {
@@ -449,6 +465,7 @@ impl Default for ChainSpec {
             velocity: [0.0; 3],
             spring: ChainSpring::default(),
             pin: Vec::new(),
+            pin_motion: None,
         }
     }
 }
@@ -475,6 +492,8 @@ pub struct LatticeSpec {
     /// Pinned particles as `[i, j, k]`.
     #[serde(deserialize_with = "whole::list_of_arrays")]
     pub pin: Vec<[usize; 3]>,
+    /// Moves the pinned particles rigidly about the body's rest centroid (default: they stay).
+    pub pin_motion: Option<MotionSpec>,
 }
 
 impl Default for LatticeSpec {
@@ -488,6 +507,7 @@ impl Default for LatticeSpec {
             velocity: [0.0; 3],
             springs: GridSprings::default(),
             pin: Vec::new(),
+            pin_motion: None,
         }
     }
 }
@@ -522,6 +542,19 @@ pub struct MeshSpec {
     /// Pinned vertex indices.
     #[serde(default, deserialize_with = "whole::list")]
     pub pin: Vec<usize>,
+    /// Moves the pinned particles rigidly about the body's rest centroid (default: they stay).
+    #[serde(default)]
+    pub pin_motion: Option<MotionSpec>,
+    /// Moves it after rotating, in metres (default `[0, 0, 0]`).
+    #[serde(default)]
+    pub translation: [f64; 3],
+    /// Turns it about the origin after scaling: a unit quaternion `[x, y, z, w]` (default the
+    /// identity).
+    #[serde(default = "super::placement::default_rotation")]
+    pub rotation: [f64; 4],
+    /// Scales it about the origin, a positive number (default 1).
+    #[serde(default = "super::placement::default_scale")]
+    pub scale: f64,
 }
 
 fn default_mesh_mass() -> f64 {
@@ -530,7 +563,7 @@ fn default_mesh_mass() -> f64 {
 
 /// A collider, by its `type`. Each has `friction` (Coulomb μ, at least 0; default 0.3) and
 /// `restitution` (in [0, 1]; default 0).
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub enum ColliderSpec {
     /// A plane; the side behind its normal is solid.
     Plane(PlaneSpec),
@@ -540,6 +573,8 @@ pub enum ColliderSpec {
     Box(BoxSpec),
     /// A solid cylinder with its axis along y (a round table).
     Cylinder(CylinderSpec),
+    /// A triangle mesh: a two-sided sheet, or a solid when closed.
+    Mesh(MeshColliderSpec),
 }
 
 impl ColliderSpec {
@@ -550,6 +585,30 @@ impl ColliderSpec {
             Self::Sphere(_) => "sphere",
             Self::Box(_) => "box",
             Self::Cylinder(_) => "cylinder",
+            Self::Mesh(_) => "mesh",
+        }
+    }
+
+    /// Where the scene puts it.
+    pub fn placement(&self) -> Placement {
+        let (translation, rotation, scale) = match self {
+            Self::Plane(c) => (c.translation, c.rotation, c.scale),
+            Self::Sphere(c) => (c.translation, c.rotation, c.scale),
+            Self::Box(c) => (c.translation, c.rotation, c.scale),
+            Self::Cylinder(c) => (c.translation, c.rotation, c.scale),
+            Self::Mesh(c) => (c.translation, c.rotation, c.scale),
+        };
+        Placement { translation, rotation, scale }
+    }
+
+    /// How it moves, if it does.
+    pub fn motion(&self) -> Option<&MotionSpec> {
+        match self {
+            Self::Plane(c) => c.motion.as_ref(),
+            Self::Sphere(c) => c.motion.as_ref(),
+            Self::Box(c) => c.motion.as_ref(),
+            Self::Cylinder(c) => c.motion.as_ref(),
+            Self::Mesh(c) => c.motion.as_ref(),
         }
     }
 
@@ -560,6 +619,7 @@ impl ColliderSpec {
             Self::Sphere(c) => (c.friction, c.restitution),
             Self::Box(c) => (c.friction, c.restitution),
             Self::Cylinder(c) => (c.friction, c.restitution),
+            Self::Mesh(c) => (c.friction, c.restitution),
         }
     }
 }
@@ -569,7 +629,7 @@ fn default_friction() -> f64 {
 }
 
 /// A plane collider: the floor by default.
-#[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct PlaneSpec {
     /// A point on the plane, in metres (default `[0, 0, 0]`).
@@ -584,6 +644,19 @@ pub struct PlaneSpec {
     /// Restitution, in [0, 1] (default 0).
     #[serde(default)]
     pub restitution: f64,
+    /// Moves it after rotating, in metres (default `[0, 0, 0]`).
+    #[serde(default)]
+    pub translation: [f64; 3],
+    /// Turns it about the origin after scaling: a unit quaternion `[x, y, z, w]` (default the
+    /// identity).
+    #[serde(default = "super::placement::default_rotation")]
+    pub rotation: [f64; 4],
+    /// Scales it about the origin, a positive number (default 1).
+    #[serde(default = "super::placement::default_scale")]
+    pub scale: f64,
+    /// How it moves (default: it stands still).
+    #[serde(default)]
+    pub motion: Option<MotionSpec>,
 }
 
 fn default_up() -> [f64; 3] {
@@ -591,7 +664,7 @@ fn default_up() -> [f64; 3] {
 }
 
 /// A sphere collider.
-#[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SphereSpec {
     /// Centre, in metres (required).
@@ -604,10 +677,23 @@ pub struct SphereSpec {
     /// Restitution, in [0, 1] (default 0).
     #[serde(default)]
     pub restitution: f64,
+    /// Moves it after rotating, in metres (default `[0, 0, 0]`).
+    #[serde(default)]
+    pub translation: [f64; 3],
+    /// Turns it about the origin after scaling: a unit quaternion `[x, y, z, w]` (default the
+    /// identity).
+    #[serde(default = "super::placement::default_rotation")]
+    pub rotation: [f64; 4],
+    /// Scales it about the origin, a positive number (default 1).
+    #[serde(default = "super::placement::default_scale")]
+    pub scale: f64,
+    /// How it moves (default: it stands still).
+    #[serde(default)]
+    pub motion: Option<MotionSpec>,
 }
 
 /// An axis-aligned box collider.
-#[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct BoxSpec {
     /// Centre, in metres (required).
@@ -620,10 +706,23 @@ pub struct BoxSpec {
     /// Restitution, in [0, 1] (default 0).
     #[serde(default)]
     pub restitution: f64,
+    /// Moves it after rotating, in metres (default `[0, 0, 0]`).
+    #[serde(default)]
+    pub translation: [f64; 3],
+    /// Turns it about the origin after scaling: a unit quaternion `[x, y, z, w]` (default the
+    /// identity).
+    #[serde(default = "super::placement::default_rotation")]
+    pub rotation: [f64; 4],
+    /// Scales it about the origin, a positive number (default 1).
+    #[serde(default = "super::placement::default_scale")]
+    pub scale: f64,
+    /// How it moves (default: it stands still).
+    #[serde(default)]
+    pub motion: Option<MotionSpec>,
 }
 
 /// A cylinder collider with its axis along y.
-#[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct CylinderSpec {
     /// The middle of its axis, in metres (required); the top is at `center[1] + height / 2`.
@@ -638,6 +737,93 @@ pub struct CylinderSpec {
     /// Restitution, in [0, 1] (default 0).
     #[serde(default)]
     pub restitution: f64,
+    /// Moves it after rotating, in metres (default `[0, 0, 0]`).
+    #[serde(default)]
+    pub translation: [f64; 3],
+    /// Turns it about the origin after scaling: a unit quaternion `[x, y, z, w]` (default the
+    /// identity).
+    #[serde(default = "super::placement::default_rotation")]
+    pub rotation: [f64; 4],
+    /// Scales it about the origin, a positive number (default 1).
+    #[serde(default = "super::placement::default_scale")]
+    pub scale: f64,
+    /// How it moves (default: it stands still).
+    #[serde(default)]
+    pub motion: Option<MotionSpec>,
+}
+
+/// A triangle-mesh collider. It is a solid when closed (every edge shared by exactly two
+/// triangles, once in each direction, vertices at one position counted as one), else a
+/// two-sided sheet.
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MeshColliderSpec {
+    /// Flat vertex coordinates `[x0, y0, z0, x1, ...]`, in metres (required).
+    pub vertices: Vec<f64>,
+    /// Flat vertex indices, three per triangle (required).
+    #[serde(deserialize_with = "whole::list")]
+    pub triangles: Vec<usize>,
+    /// The distance particles keep from the triangles, in metres, positive (default 0.005); a
+    /// `scale` does not change it.
+    #[serde(default = "default_mesh_thickness")]
+    pub thickness: f64,
+    /// Coulomb friction μ (default 0.3).
+    #[serde(default = "default_friction")]
+    pub friction: f64,
+    /// Restitution, in [0, 1] (default 0).
+    #[serde(default)]
+    pub restitution: f64,
+    /// Moves it after rotating, in metres (default `[0, 0, 0]`).
+    #[serde(default)]
+    pub translation: [f64; 3],
+    /// Turns it about the origin after scaling: a unit quaternion `[x, y, z, w]` (default the
+    /// identity).
+    #[serde(default = "super::placement::default_rotation")]
+    pub rotation: [f64; 4],
+    /// Scales it about the origin, a positive number (default 1).
+    #[serde(default = "super::placement::default_scale")]
+    pub scale: f64,
+    /// How it moves (default: it stands still).
+    #[serde(default)]
+    pub motion: Option<MotionSpec>,
+}
+
+fn default_mesh_thickness() -> f64 {
+    0.005
+}
+
+/// A rigid motion: `keyframes`, or a `velocity` and `angular_velocity`.
+///
+/// Keyframes are piecewise linear in translation and slerped in rotation, held before the first
+/// and after the last; each key's transform replaces the static `translation` and `rotation` and
+/// applies to the shape as defined (after its `scale`). A velocity moves the shape from its static
+/// placement: `x(t) = translation + velocity·t + exp(angular_velocity·t)·rotation·(scale·x)`.
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MotionSpec {
+    /// Keys in strictly increasing time (at least one).
+    #[serde(default)]
+    pub keyframes: Option<Vec<KeyframeSpec>>,
+    /// Velocity, in m/s (default 0 when `angular_velocity` is given).
+    #[serde(default)]
+    pub velocity: Option<[f64; 3]>,
+    /// Angular velocity about the shape's origin, in rad/s (default 0 when `velocity` is given).
+    #[serde(default)]
+    pub angular_velocity: Option<[f64; 3]>,
+}
+
+/// One key of a motion.
+#[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct KeyframeSpec {
+    /// Time, in seconds, at least 0 (required).
+    pub t: f64,
+    /// Translation, in metres (default `[0, 0, 0]`).
+    #[serde(default)]
+    pub translation: [f64; 3],
+    /// Rotation, a unit quaternion `[x, y, z, w]` (default the identity).
+    #[serde(default = "super::placement::default_rotation")]
+    pub rotation: [f64; 4],
 }
 
 /// How wind turns into forces.

@@ -3,6 +3,8 @@
 
 use super::error::FieldError;
 use super::fabrics::FabricSpec;
+use super::placement::{Placement, ROTATION_NORM_TOLERANCE};
+use super::types::MotionSpec;
 use super::types::{
     BendingModelName, Body, BodyMaterial, ClothShape, ColliderSpec, Field, Format, FrameSelection, GridSprings,
     Output, Scene, SpringSpec, WindSpec,
@@ -301,6 +303,18 @@ impl Output {
 
 fn body_problems(p: &mut Problems, at: &str, body: &Body) {
     let field = |name: &str| format!("{at}/{name}");
+    if let Some(motion) = body.pin_motion() {
+        motion_problems(p, &field("pin_motion"), motion);
+        let pins = match body {
+            Body::Cloth(c) => c.pin.len(),
+            Body::Chain(c) => c.pin.len(),
+            Body::Lattice(l) => l.pin.len(),
+            Body::Mesh(m) => m.pin.len(),
+        };
+        if pins == 0 {
+            p.add(field("pin_motion"), "moves the pinned particles, and the body has none: give `pin`");
+        }
+    }
     match body {
         Body::Cloth(c) => {
             p.resolution(&field("resolution"), &c.resolution);
@@ -394,6 +408,18 @@ fn mesh_problems(p: &mut Problems, at: &str, m: &super::types::MeshSpec) {
         p.fabric(&field("material"), material);
     }
     p.bending_model(at, m);
+    let placement = m.placement();
+    if placement_problems(p, at, &placement) && placement != Placement::default() {
+        let blame = placement_field(at, &placement);
+        let out = m
+            .vertices
+            .chunks_exact(3)
+            .map(|v| placement.point(glam::DVec3::new(v[0], v[1], v[2])))
+            .find(|x| !x.is_finite() || x.abs().max_element() > MAX_MAGNITUDE);
+        if out.is_some() {
+            p.add(blame, format!("puts a vertex beyond ±{MAX_MAGNITUDE:e}"));
+        }
+    }
     let well_formed = p.0.iter().all(|e| !e.pointer.starts_with(at));
     if !well_formed {
         return;
@@ -415,8 +441,9 @@ fn mesh_problems(p: &mut Problems, at: &str, m: &super::types::MeshSpec) {
     if let Some(fabric) = &m.material
         && p.0.iter().all(|e| !e.pointer.starts_with(at))
     {
+        let placement = m.placement();
         let mesh = crate::solver::Mesh {
-            vertices: m.vertex_positions(),
+            vertices: m.vertex_positions().into_iter().map(|x| placement.point(x)).collect(),
             triangles: m.triangle_indices(),
             mass: 1.0,
             velocity: glam::DVec3::ZERO,
@@ -459,6 +486,22 @@ fn mesh_fabric_range(p: &mut Problems, pointer: &str, mesh: crate::solver::Mesh,
 
 fn collider_problems(p: &mut Problems, at: &str, collider: &ColliderSpec) {
     let field = |name: &str| format!("{at}/{name}");
+    let placement = collider.placement();
+    if placement_problems(p, at, &placement) {
+        if matches!(collider, ColliderSpec::Box(_) | ColliderSpec::Cylinder(_)) && !placement.is_unrotated() {
+            p.add(
+                field("rotation"),
+                format!(
+                    "a {} stays axis-aligned: only the identity rotation [0, 0, 0, 1]; give a rotated one as a `mesh`",
+                    collider.type_name()
+                ),
+            );
+        }
+        placed_collider_problems(p, at, collider, &placement);
+    }
+    if let Some(motion) = collider.motion() {
+        motion_problems(p, &field("motion"), motion);
+    }
     match collider {
         ColliderSpec::Plane(c) => {
             p.vector(&field("point"), &c.point);
@@ -484,11 +527,152 @@ fn collider_problems(p: &mut Problems, at: &str, collider: &ColliderSpec) {
             p.length(&field("radius"), c.radius);
             p.length(&field("height"), c.height);
         }
+        ColliderSpec::Mesh(c) => mesh_collider_problems(p, at, c),
     }
     let (friction, restitution) = collider.surface();
     p.non_negative(&field("friction"), friction);
     if p.finite(&field("restitution"), &[restitution]) && !(0.0..=1.0).contains(&restitution) {
         p.add(field("restitution"), format!("must be in [0, 1], got {restitution}"));
+    }
+}
+
+/// A mesh collider's triangles: indices in range, coordinates in range, some triangle with a
+/// surface. Triangles of zero area are allowed (they have no surface and are left out).
+fn mesh_collider_problems(p: &mut Problems, at: &str, m: &super::types::MeshColliderSpec) {
+    let field = |name: &str| format!("{at}/{name}");
+    let vertex_count = m.vertices.len() / 3;
+    let before = p.0.len();
+    if !m.vertices.len().is_multiple_of(3) || vertex_count < 3 {
+        p.add(
+            field("vertices"),
+            format!("must hold x, y, z for at least 3 vertices; got {} numbers", m.vertices.len()),
+        );
+    } else if vertex_count > u32::MAX as usize {
+        p.add(field("vertices"), format!("must hold at most {} vertices", u32::MAX));
+    }
+    p.vector(&field("vertices"), &m.vertices);
+    if !m.triangles.len().is_multiple_of(3) || m.triangles.is_empty() {
+        p.add(
+            field("triangles"),
+            format!("must hold three indices per triangle, at least one; got {}", m.triangles.len()),
+        );
+    }
+    p.indices(&field("triangles"), &m.triangles, vertex_count, "vertex");
+    p.length(&field("thickness"), m.thickness);
+    if p.0.len() > before {
+        return;
+    }
+    let at_vertex = |i: usize| glam::DVec3::from_slice(&m.vertices[3 * i..3 * i + 3]);
+    let has_surface = m.triangles.chunks_exact(3).any(|t| {
+        let [a, b, c] = [at_vertex(t[0]), at_vertex(t[1]), at_vertex(t[2])];
+        (b - a).cross(c - a).length_squared() > 0.0
+    });
+    if !has_surface {
+        p.add(field("triangles"), "no triangle has a positive area: the mesh has no surface");
+    }
+}
+
+/// A motion: keyframes in increasing time with sound transforms, or velocities in range.
+fn motion_problems(p: &mut Problems, at: &str, motion: &MotionSpec) {
+    match (&motion.keyframes, motion.velocity.is_some() || motion.angular_velocity.is_some()) {
+        (Some(_), true) => p.add(at, "gives keyframes and a velocity: one or the other"),
+        (None, false) => p.add(at, "needs `keyframes`, or a `velocity` or `angular_velocity`"),
+        (Some(keys), false) => {
+            if keys.is_empty() {
+                p.add(format!("{at}/keyframes"), "needs at least one keyframe");
+            }
+            for (k, key) in keys.iter().enumerate() {
+                let here = format!("{at}/keyframes/{k}");
+                let t = format!("{here}/t");
+                if p.finite(&t, &[key.t]) {
+                    if !(0.0..=*POSITIVE_RANGE.end()).contains(&key.t) {
+                        p.add(&t, format!("must be in [0, {:e}] s, got {}", POSITIVE_RANGE.end(), key.t));
+                    } else if k > 0 && key.t <= keys[k - 1].t {
+                        p.add(&t, format!("must come after the previous keyframe's {} s", keys[k - 1].t));
+                    }
+                }
+                let placement =
+                    Placement { translation: key.translation, rotation: key.rotation, scale: 1.0 };
+                placement_problems(p, &here, &placement);
+            }
+        }
+        (None, true) => {
+            if let Some(v) = &motion.velocity {
+                p.vector(&format!("{at}/velocity"), v);
+            }
+            if let Some(w) = &motion.angular_velocity {
+                p.vector(&format!("{at}/angular_velocity"), w);
+            }
+        }
+    }
+}
+
+/// A placement's own numbers; whether they are sound enough to apply.
+fn placement_problems(p: &mut Problems, at: &str, placement: &Placement) -> bool {
+    let before = p.0.len();
+    p.vector(&format!("{at}/translation"), &placement.translation);
+    let rotation = format!("{at}/rotation");
+    if p.finite(&rotation, &placement.rotation) {
+        let norm = placement.rotation.iter().map(|c| c * c).sum::<f64>().sqrt();
+        if (norm - 1.0).abs() > ROTATION_NORM_TOLERANCE {
+            p.add(
+                rotation,
+                format!("must be a unit quaternion [x, y, z, w]: its norm is {norm}, not within {ROTATION_NORM_TOLERANCE:e} of 1"),
+            );
+        }
+    }
+    p.positive(&format!("{at}/scale"), placement.scale);
+    p.0.len() == before
+}
+
+/// The field a placed shape's numbers out of range are blamed on: the part of the placement
+/// that changes them.
+fn placement_field(at: &str, placement: &Placement) -> String {
+    let part = if placement.scale != 1.0 {
+        "scale"
+    } else if !placement.is_unrotated() {
+        "rotation"
+    } else {
+        "translation"
+    };
+    format!("{at}/{part}")
+}
+
+/// A placed collider's coordinates and lengths stay within their ranges.
+fn placed_collider_problems(p: &mut Problems, at: &str, collider: &ColliderSpec, placement: &Placement) {
+    if *placement == Placement::default() {
+        return;
+    }
+    let blame = placement_field(at, placement);
+    let mut placed = Problems(Vec::new());
+    let point = |x: [f64; 3]| placement.point(glam::DVec3::from_array(x)).to_array();
+    match collider {
+        ColliderSpec::Plane(c) => {
+            placed.vector(&blame, &point(c.point));
+        }
+        ColliderSpec::Sphere(c) => {
+            placed.vector(&blame, &point(c.center));
+            placed.length(&blame, placement.scale * c.radius);
+        }
+        ColliderSpec::Box(c) => {
+            placed.vector(&blame, &point(c.center));
+            placed.lengths(&blame, &c.half_extents.map(|h| placement.scale * h));
+        }
+        ColliderSpec::Cylinder(c) => {
+            placed.vector(&blame, &point(c.center));
+            placed.length(&blame, placement.scale * c.radius);
+            placed.length(&blame, placement.scale * c.height);
+        }
+        ColliderSpec::Mesh(c) => {
+            for vertex in c.vertices.chunks_exact(3) {
+                if !placed.vector(&blame, &point([vertex[0], vertex[1], vertex[2]])) {
+                    break;
+                }
+            }
+        }
+    }
+    if let Some(first) = placed.0.into_iter().next() {
+        p.add(blame, format!("puts the collider out of range: {}", first.detail));
     }
 }
 

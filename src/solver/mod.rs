@@ -17,8 +17,10 @@ mod integrators;
 mod interrupt;
 mod math;
 mod model;
+mod motion;
 mod normals;
 pub mod parallel;
+mod pin_motion;
 mod simulation;
 mod stability;
 mod state;
@@ -27,7 +29,9 @@ mod state;
 mod tests;
 
 pub use bodies::{Chain, Cloth, Lattice, Mesh, Orientation, vertex_areas};
-pub use constraints::contacts::{Collider, DEFAULT_FRICTION, Shape};
+pub use constraints::contacts::{
+    BVH_LEAF_SIZE, Collider, DEFAULT_FRICTION, Shape, TriangleBvh, TriangleSurface,
+};
 pub use constraints::self_collision::{PairCapReached, SelfCollision, candidate_pairs};
 pub use diagnostics::Energy;
 pub use disk::{Disk, disk_index, disk_layout, disk_particle_count, disk_ring_size};
@@ -41,6 +45,8 @@ pub use math::real::Real;
 pub use math::vec3::Vec3;
 pub use math::vectors::Vectors;
 pub use model::{BendingElement, Model, Spring, SpringGrid, SpringKind, SpringParams};
+pub use motion::{Keyframe, Motion, Rigid};
+pub use pin_motion::PinMotion;
 pub use simulation::{Config, STAGE_NAMES, Simulation, StepError};
 pub use stability::{Divergence, DivergenceReason, stable_step};
 pub use state::State;

@@ -23,6 +23,7 @@ use crate::solver::interrupt::Interrupt;
 use crate::solver::math::real::Real;
 use crate::solver::math::vec3::Vec3;
 use crate::solver::model::Model;
+use crate::solver::pin_motion::{MovingPins, PinMotion};
 use crate::solver::stability::{self, Divergence, DivergenceReason};
 use crate::solver::state::State;
 use crate::solver::{normals, parallel};
@@ -30,19 +31,22 @@ use crate::solver::{normals, parallel};
 /// Every stage name a simulation or a run can report, in the order a step runs them: the
 /// forces, then the constraints and contacts. `normals` is also the per-frame normals a run's
 /// output asks for.
-pub const STAGE_NAMES: [&str; 12] = [
+pub const STAGE_NAMES: [&str; 15] = [
     "gravity",
     "drag",
     "springs",
     "bending",
     "normals",
     "wind",
+    "pin_motion",
     "strain_limit",
     "self_collision",
     "plane",
     "sphere",
     "box",
     "cylinder",
+    "mesh",
+    "moving_colliders",
 ];
 
 /// Everything about a run that is not the bodies themselves.
@@ -66,6 +70,8 @@ pub struct Config {
     pub strain_limit: Option<f64>,
     /// Self-collision thickness, in metres (positive): unjoined particles keep twice it apart.
     pub self_collision: Option<f64>,
+    /// Pinned particles carried along motions.
+    pub pin_motions: Vec<PinMotion>,
     /// The most candidate pairs self-collision may hold in one step; a step that meets more
     /// fails with [`StepError::LimitReached`].
     pub max_self_collision_pairs: usize,
@@ -84,6 +90,7 @@ impl Default for Config {
             colliders: Vec::new(),
             strain_limit: None,
             self_collision: None,
+            pin_motions: Vec::new(),
             max_self_collision_pairs: usize::MAX,
         }
     }
@@ -123,6 +130,8 @@ pub struct Simulation<T: Real> {
     strain_limit: Option<StrainLimit<T>>,
     self_collision: Option<SelfCollision<T>>,
     contacts: Option<Contacts<T>>,
+    moving_colliders: bool,
+    moving_pins: Option<MovingPins>,
     triangles: Vec<[u32; 3]>,
     integrator: IntegratorKind,
     dt: f64,
@@ -146,6 +155,11 @@ impl<T: Real> Simulation<T> {
             positions: model.positions.iter().map(|&p| Vec3::from_dvec3(p)).collect(),
             velocities: model.velocities.iter().map(|&v| Vec3::from_dvec3(v)).collect(),
         };
+        let moving_pins = MovingPins::new(&config.pin_motions, &model.positions);
+        if let Some(pins) = &moving_pins {
+            // At rest where the motion starts, moving as it starts.
+            pins.place(&mut state, -config.dt, config.dt);
+        }
         let strain_limit = config.strain_limit.map(|limit| StrainLimit::new(limit, n));
         let self_collision = config
             .self_collision
@@ -158,15 +172,21 @@ impl<T: Real> Simulation<T> {
         let initial = diagnostics::energy(&dynamics, &state);
         let runaway_limit = stability::runaway_limit(
             initial.kinetic + initial.spring,
-            released_energy(model, config.gravity) + wind_energy(model, config.wind.as_ref()),
+            released_energy(model, config.gravity)
+                + wind_energy(model, config.wind.as_ref())
+                + collider_energy(model, &config.colliders),
         );
         let mut stages: Vec<&'static str> = dynamics.stages().collect();
+        stages.extend(moving_pins.as_ref().map(|_| "pin_motion"));
         stages.extend(strain_limit.as_ref().map(|_| "strain_limit"));
         stages.extend(self_collision.as_ref().map(|_| "self_collision"));
         stages.extend(contacts.iter().flat_map(Contacts::stages));
+        stages.extend(contacts.as_ref().filter(|c| c.any_moving()).map(|_| "moving_colliders"));
         Self {
             strain_limit,
             self_collision,
+            moving_colliders: contacts.as_ref().is_some_and(Contacts::any_moving),
+            moving_pins,
             contacts,
             stable_dt: stability::stable_step(model, config.drag),
             dynamics,
@@ -198,16 +218,23 @@ impl<T: Real> Simulation<T> {
         if self.interrupted() {
             return Err(StepError::Interrupted);
         }
+        let t = self.time();
         if let Some(contacts) = &mut self.contacts {
             contacts.begin_step(&self.state.positions);
+            if self.moving_colliders {
+                contacts.move_colliders(t, self.dt);
+            }
         }
-        let t = self.time();
         let sums = self
             .stepper
             .step(&mut self.state, &mut self.dynamics, t, self.h)
             .map_err(|_| StepError::Interrupted)?;
         let inverse_masses = &self.dynamics.inverse_masses;
         let mut moved = false;
+        if let Some(pins) = &self.moving_pins {
+            pins.place(&mut self.state, t, self.dt);
+            moved = true;
+        }
         if let Some(limit) = &mut self.strain_limit {
             let contacts = self.contacts.as_ref();
             moved |= limit.apply(&mut self.state, &self.dynamics.springs, inverse_masses, contacts, self.h);
@@ -229,8 +256,10 @@ impl<T: Real> Simulation<T> {
         self.steps_taken += 1;
         // The integrator's sums describe the state it left, valid unless a later stage could
         // have changed it.
-        let later_stages =
-            self.strain_limit.is_some() || self.self_collision.is_some() || self.contacts.is_some();
+        let later_stages = self.strain_limit.is_some()
+            || self.self_collision.is_some()
+            || self.contacts.is_some()
+            || self.moving_pins.is_some();
         self.watch(sums.filter(|_| !later_stages)).map_err(StepError::Diverged)
     }
 
@@ -327,6 +356,16 @@ impl<T: Real> Simulation<T> {
 /// The kinetic energy of every particle moving with the wind at its fastest: `½ Σ m |u|²`.
 fn wind_energy(model: &Model, wind: Option<&WindConfig>) -> f64 {
     wind.map_or(0.0, |w| 0.5 * model.total_mass() * w.peak_speed().powi(2))
+}
+
+/// The kinetic energy of every particle leaving a moving collider at twice the fastest speed of
+/// its surface near the particles (a perfectly elastic bounce off a moving wall doubles the
+/// wall's speed).
+fn collider_energy(model: &Model, colliders: &[Collider]) -> f64 {
+    let reach = model.positions.iter().map(|p| p.length()).fold(1.0, f64::max);
+    let peak =
+        colliders.iter().filter_map(|c| c.motion.as_ref()).map(|m| m.peak_speed(reach)).fold(0.0, f64::max);
+    0.5 * model.total_mass() * (2.0 * peak).powi(2)
 }
 
 /// The most energy gravity can release: every particle falling the scene's extent and one metre

@@ -512,7 +512,7 @@ export interface components {
             output?: components["schemas"]["Output"] | null;
         };
         Body: components["schemas"]["Cloth"] | components["schemas"]["Chain"] | components["schemas"]["Lattice"] | components["schemas"]["Mesh"];
-        Collider: components["schemas"]["PlaneCollider"] | components["schemas"]["SphereCollider"] | components["schemas"]["BoxCollider"] | components["schemas"]["CylinderCollider"];
+        Collider: components["schemas"]["PlaneCollider"] | components["schemas"]["SphereCollider"] | components["schemas"]["BoxCollider"] | components["schemas"]["CylinderCollider"] | components["schemas"]["MeshCollider"];
         /** @description A plane; the side behind its normal is solid. */
         PlaneCollider: {
             /**
@@ -539,6 +539,10 @@ export interface components {
             normal: components["schemas"]["Vec3"];
             friction?: components["schemas"]["Friction"];
             restitution?: components["schemas"]["Restitution"];
+            translation?: components["schemas"]["Translation"];
+            rotation?: components["schemas"]["Rotation"];
+            scale?: components["schemas"]["Scale"];
+            motion?: components["schemas"]["Motion"];
         };
         SphereCollider: {
             /**
@@ -550,6 +554,10 @@ export interface components {
             radius: number;
             friction?: components["schemas"]["Friction"];
             restitution?: components["schemas"]["Restitution"];
+            translation?: components["schemas"]["Translation"];
+            rotation?: components["schemas"]["Rotation"];
+            scale?: components["schemas"]["Scale"];
+            motion?: components["schemas"]["Motion"];
         };
         /** @description An axis-aligned box. */
         BoxCollider: {
@@ -562,6 +570,10 @@ export interface components {
             half_extents: number[];
             friction?: components["schemas"]["Friction"];
             restitution?: components["schemas"]["Restitution"];
+            translation?: components["schemas"]["Translation"];
+            rotation?: components["schemas"]["Rotation"];
+            scale?: components["schemas"]["Scale"];
+            motion?: components["schemas"]["Motion"];
         };
         /** @description A cylinder with its axis along y; `center` is the middle of its axis. */
         CylinderCollider: {
@@ -575,6 +587,76 @@ export interface components {
             height: number;
             friction?: components["schemas"]["Friction"];
             restitution?: components["schemas"]["Restitution"];
+            translation?: components["schemas"]["Translation"];
+            rotation?: components["schemas"]["Rotation"];
+            scale?: components["schemas"]["Scale"];
+            motion?: components["schemas"]["Motion"];
+        };
+        /** @description A triangle mesh, kept from its triangles by `thickness`; a particle's whole path within a step is tested, so a fast one stops even at a single sheet. Closed (every edge shared by exactly two triangles, once in each direction; vertices at one position count as one), it is a solid, and a particle inside goes out to the nearest surface; otherwise a two-sided sheet. Triangles of zero area are left out; at least one must have a positive area. Its `vertices` and `triangles` are given inline or by `asset`, an uploaded mesh (`POST /assets`), never both; the command line takes `file` instead, as for a mesh body. */
+        MeshCollider: {
+            /**
+             * @description discriminator enum property added by openapi-typescript
+             * @enum {string}
+             */
+            type: "mesh";
+            /** @description An uploaded mesh, in place of `vertices` and `triangles`. */
+            asset?: string;
+            /** @description Flat `[x0, y0, z0, x1, ...]`, in metres; a multiple of 3. */
+            vertices?: number[];
+            /** @description Flat vertex indices, three per triangle, each below the vertex count. */
+            triangles?: number[];
+            /**
+             * @description The distance particles keep from the triangles, in metres.
+             * @default 0.005
+             */
+            thickness: number;
+            friction?: components["schemas"]["Friction"];
+            restitution?: components["schemas"]["Restitution"];
+            translation?: components["schemas"]["Translation"];
+            rotation?: components["schemas"]["Rotation"];
+            scale?: components["schemas"]["Scale"];
+            motion?: components["schemas"]["Motion"];
+        } & ({
+            vertices: unknown;
+            triangles: unknown;
+        } | {
+            asset: unknown;
+        });
+        /**
+         * @description Moves the shape after its rotation, in metres; the placed coordinates must stay within ±1e6.
+         * @default [
+         *       0,
+         *       0,
+         *       0
+         *     ]
+         */
+        Translation: components["schemas"]["Vec3"];
+        /**
+         * @description Turns the shape about the origin after its scale: a unit quaternion `[x, y, z, w]`, its norm within 1e-6 of 1. A box or cylinder takes only the identity (give a rotated one as a mesh).
+         * @default [
+         *       0,
+         *       0,
+         *       0,
+         *       1
+         *     ]
+         */
+        Rotation: number[];
+        /**
+         * @description Scales the shape about the origin, uniformly: a sphere's radius, a box's half extents, a cylinder's radius and height, a mesh's vertices (not a mesh collider's thickness).
+         * @default 1
+         */
+        Scale: number;
+        /** @description How a collider moves: `keyframes` (piecewise linear in translation, slerp in rotation, held before the first key and after the last; each key's transform replaces the static `translation` and `rotation` and applies to the shape as defined after its `scale`), or a `velocity` and `angular_velocity` from the static placement, `x(t) = translation + velocity·t + exp(angular_velocity·t)·rotation·(scale·x)`, not both. Contacts use the surface's own velocity, and a particle's path is tested relative to the moving surface, so it sweeps up what is in its way. Result frames carry its transform. */
+        Motion: {
+            keyframes?: {
+                /** @description Seconds; strictly increasing. */
+                t: number;
+                translation?: components["schemas"]["Translation"];
+                rotation?: components["schemas"]["Rotation"];
+            }[];
+            velocity?: components["schemas"]["Vec3"];
+            /** @description rad/s, about the shape's origin. */
+            angular_velocity?: components["schemas"]["Vec3"];
         };
         /**
          * @description Coulomb friction μ.
@@ -722,6 +804,8 @@ export interface components {
             bending_model?: components["schemas"]["BendingModel"];
             /** @description Pinned particles as `[i, j]` (a disk's as `[ring, k]`). */
             pin?: number[][];
+            /** @description Moves the pinned particles rigidly about the body's rest centroid, `x(t) = c + translation(t) + rotation(t)·(x₀ - c)`; the body needs pins. */
+            pin_motion?: components["schemas"]["Motion"];
         };
         /** @description `count` particles evenly from `start` to `end`. */
         Chain: {
@@ -775,6 +859,8 @@ export interface components {
             };
             /** @description Pinned particle indices. */
             pin?: number[];
+            /** @description Moves the pinned particles rigidly about the body's rest centroid, `x(t) = c + translation(t) + rotation(t)·(x₀ - c)`; the body needs pins. */
+            pin_motion?: components["schemas"]["Motion"];
         };
         /** @description A 3-D block; particle `(i, j, k)` is index `(k * ny + j) * nx + i`. */
         Lattice: {
@@ -822,6 +908,8 @@ export interface components {
             springs?: components["schemas"]["GridSprings"];
             /** @description Pinned particles as `[i, j, k]`. */
             pin?: number[][];
+            /** @description Moves the pinned particles rigidly about the body's rest centroid, `x(t) = c + translation(t) + rotation(t)·(x₀ - c)`; the body needs pins. */
+            pin_motion?: components["schemas"]["Motion"];
         };
         /**
          * @description A triangle mesh; edges become structural springs, opposite vertices of neighbouring
@@ -879,6 +967,11 @@ export interface components {
             bending_model?: components["schemas"]["BendingModel"];
             /** @description Pinned vertex indices. */
             pin?: number[];
+            /** @description Moves the pinned particles rigidly about the body's rest centroid, `x(t) = c + translation(t) + rotation(t)·(x₀ - c)`; the body needs pins. */
+            pin_motion?: components["schemas"]["Motion"];
+            translation?: components["schemas"]["Translation"];
+            rotation?: components["schemas"]["Rotation"];
+            scale?: components["schemas"]["Scale"];
         } & ({
             vertices: unknown;
             triangles: unknown;
@@ -1012,8 +1105,9 @@ export interface components {
         };
         /**
          * @description A collider of the scene, with the shape fields its type has, as the scene gives them after
-         *     defaults (a mesh's vertices after its static transform). GLB results draw it as a node of
-         *     the same name.
+         *     defaults and its `translation`, `rotation` and `scale` (a plane's point and normal, a
+         *     sphere's centre and radius, a mesh's vertices, all placed). GLB results draw it as a node
+         *     of the same name.
          */
         ResultCollider: {
             /** @description `collider:` and the index in the scene's `colliders`. */

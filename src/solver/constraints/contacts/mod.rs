@@ -21,6 +21,8 @@
 //! side), is put where it first met the surface. A path that only grazes the surface (as a particle
 //! sliding over the ball does) is not a passage. The start-of-step positions live in a buffer made
 //! once, only when a scene has colliders. Boxes and cylinders are tested at the end of the step.
+//! A triangle mesh (`mesh.rs`, through the hierarchy of `triangle_bvh.rs`) tests the segment
+//! against its triangles, so that a fast particle stops even at a sheet with no inside.
 //!
 //! Each shape has its own file: the test "is this point inside, and where is the nearest surface
 //! point", the cheap branch-free test it starts with (`reaches`, and for the sphere `dips`), and
@@ -31,28 +33,57 @@
 
 mod axis_box;
 mod cylinder;
+mod mesh;
 mod plane;
 mod sphere;
+mod surface_topology;
+mod triangle;
+mod triangle_bvh;
 
+pub use triangle_bvh::{LEAF_SIZE as BVH_LEAF_SIZE, TriangleBvh};
+
+#[cfg(test)]
+pub(crate) mod mesh_tests;
+#[cfg(test)]
+mod moving_tests;
 #[cfg(test)]
 mod tests;
 
 use glam::DVec3;
 
+use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 
 use crate::solver::forces::spring_blocks::{self as blocks, LANES};
 use crate::solver::math::real::Real;
 use crate::solver::math::vec3::Vec3;
 use crate::solver::math::vectors::Vectors;
+use crate::solver::motion::{Motion, Rigid};
 use crate::solver::parallel;
 use crate::solver::state::State;
 
 /// The friction coefficient a collider has when the scene gives none.
 pub const DEFAULT_FRICTION: f64 = 0.3;
 
+/// The triangles of a mesh collider.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct TriangleSurface {
+    /// Vertex positions, in metres.
+    pub vertices: Vec<DVec3>,
+    /// Vertex indices, three per triangle, each below `vertices.len()`.
+    pub triangles: Vec<[u32; 3]>,
+}
+
+impl TriangleSurface {
+    /// Whether it is closed: every edge of its triangles of positive area shared by exactly
+    /// two of them, once in each direction (vertices at one position counted as one).
+    pub fn is_closed(&self) -> bool {
+        surface_topology::Topology::of(self).pseudo_normals.is_some()
+    }
+}
+
 /// A collider's shape.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub enum Shape {
     /// The half-space behind a plane through `point` with outward `normal` (any non-zero length).
     Plane {
@@ -84,6 +115,13 @@ pub enum Shape {
         /// Height, in metres (positive).
         height: f64,
     },
+    /// A triangle mesh: a two-sided sheet, or a solid when it is closed.
+    Mesh {
+        /// Its triangles, shared by the copies of a configuration.
+        surface: Arc<TriangleSurface>,
+        /// The distance particles keep from its triangles, in metres (positive).
+        thickness: f64,
+    },
 }
 
 impl Shape {
@@ -94,24 +132,28 @@ impl Shape {
             Self::Sphere { .. } => "sphere",
             Self::Box { .. } => "box",
             Self::Cylinder { .. } => "cylinder",
+            Self::Mesh { .. } => "mesh",
         }
     }
 
-    /// Signed distance from `p` to the surface, in metres: negative inside.
+    /// Signed distance from `p` to the surface, in metres: negative inside (for a mesh, the
+    /// distance to its triangles, negative only inside a closed one; the thickness not counted).
     pub fn signed_distance(&self, p: DVec3) -> f64 {
         ShapeIn::<f64>::new(self).signed_distance(Vec3::from_dvec3(p))
     }
 }
 
-/// A fixed shape with the response of its surface.
-#[derive(Clone, Copy, Debug, PartialEq)]
+/// A shape with the response of its surface, fixed or moving.
+#[derive(Clone, Debug, PartialEq)]
 pub struct Collider {
-    /// Where it is.
+    /// Where it is; for a moving collider, where it is in its own frame, which its motion moves.
     pub shape: Shape,
     /// Coulomb friction coefficient `μ` (at least 0).
     pub friction: f64,
     /// Restitution `e`, in [0, 1]: the fraction of approaching normal speed a particle leaves with.
     pub restitution: f64,
+    /// How it moves, if it does.
+    pub motion: Option<Motion>,
 }
 
 /// A point on a surface and the outward unit normal there.
@@ -122,12 +164,13 @@ pub(crate) struct Surface<T> {
 }
 
 /// A shape in the simulation's precision.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Debug)]
 enum ShapeIn<T> {
     Plane(plane::Plane<T>),
     Sphere(sphere::Sphere<T>),
     Box(axis_box::AxisBox<T>),
     Cylinder(cylinder::Cylinder<T>),
+    Mesh(Box<mesh::MeshShape<T>>),
 }
 
 impl<T: Real> ShapeIn<T> {
@@ -139,6 +182,9 @@ impl<T: Real> ShapeIn<T> {
             Shape::Cylinder { center, radius, height } => {
                 Self::Cylinder(cylinder::Cylinder::new(center, radius, height))
             }
+            Shape::Mesh { ref surface, thickness } => {
+                Self::Mesh(Box::new(mesh::MeshShape::new(surface, thickness)))
+            }
         }
     }
 
@@ -148,6 +194,7 @@ impl<T: Real> ShapeIn<T> {
             Self::Sphere(s) => s.signed_distance(x),
             Self::Box(s) => s.signed_distance(x),
             Self::Cylinder(s) => s.signed_distance(x),
+            Self::Mesh(s) => s.signed_distance(x),
         }
     }
 
@@ -158,6 +205,7 @@ impl<T: Real> ShapeIn<T> {
             Self::Sphere(s) => s.inside(x),
             Self::Box(s) => s.inside(x),
             Self::Cylinder(s) => s.inside(x),
+            Self::Mesh(s) => s.inside(x),
         }
     }
 
@@ -176,6 +224,7 @@ impl<T: Real> ShapeIn<T> {
                 .for_each(|l| reaches[l] = s.reaches(at(&end, l)) | s.dips(at(&start, l), at(&end, l))),
             Self::Box(s) => (0..LANES).for_each(|l| reaches[l] = s.reaches(at(&end, l))),
             Self::Cylinder(s) => (0..LANES).for_each(|l| reaches[l] = s.reaches(at(&end, l))),
+            Self::Mesh(s) => (0..LANES).for_each(|l| reaches[l] = s.reaches(at(&start, l), at(&end, l))),
         }
         reaches
     }
@@ -195,16 +244,58 @@ impl<T: Real> ShapeIn<T> {
                     None => s.passage(start, end),
                 }
             }
+            Self::Mesh(s) => s.contact(start, end),
             other => other.inside(end),
         }
     }
 }
 
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Debug)]
 struct ColliderIn<T> {
     shape: ShapeIn<T>,
     friction: T,
     restitution: T,
+    motion: Option<Motion>,
+    /// For a moving collider, where the step takes it.
+    moving: Option<StepMotion>,
+}
+
+/// Where a moving collider is at the start and at the end of a step.
+#[derive(Clone, Copy, Debug)]
+struct StepMotion {
+    from: Rigid,
+    to: Rigid,
+    dt: f64,
+}
+
+impl<T: Real> ColliderIn<T> {
+    /// The contact of a particle that moved from `start` to `end` over the step, and the velocity
+    /// of the collider's surface there (zero for a fixed one). A moving collider is met in its
+    /// own frame: the particle's start as seen from where the collider was, its end as seen from
+    /// where it is, so that the relative path is tested and a moving surface sweeps up the
+    /// particles in its way.
+    fn contact(&self, start: Vec3<T>, end: Vec3<T>) -> Option<(Surface<T>, Vec3<T>)> {
+        let Some(m) = self.moving else {
+            return self.shape.contact(start, end).map(|s| (s, Vec3::ZERO));
+        };
+        let local = |frame: &Rigid, x: Vec3<T>| Vec3::from_dvec3(frame.inverse_point(x.to_dvec3()));
+        let surface = self.shape.contact(local(&m.from, start), local(&m.to, end))?;
+        let at = surface.point.to_dvec3();
+        let (now, before) = (m.to.point(at), m.from.point(at));
+        let normal = Vec3::from_dvec3(m.to.rotation * surface.normal.to_dvec3());
+        let surface_velocity = Vec3::from_dvec3((now - before) / m.dt);
+        Some((Surface { point: Vec3::from_dvec3(now), normal }, surface_velocity))
+    }
+
+    /// Where a particle at `x`, inside or on the collider where it is now, goes.
+    fn inside(&self, x: Vec3<T>) -> Option<Surface<T>> {
+        let Some(m) = self.moving else { return self.shape.inside(x) };
+        let surface = self.shape.inside(Vec3::from_dvec3(m.to.inverse_point(x.to_dvec3())))?;
+        Some(Surface {
+            point: Vec3::from_dvec3(m.to.point(surface.point.to_dvec3())),
+            normal: Vec3::from_dvec3(m.to.rotation * surface.normal.to_dvec3()),
+        })
+    }
 }
 
 /// One band's particles: their start-of-step positions, their state and inverse masses.
@@ -223,9 +314,11 @@ impl<T: Real> Band<'_, T> {
         }
         let at = |axes: [&[T]; 3]| Vec3::new(axes[0][p], axes[1][p], axes[2][p]);
         let end = at(self.positions.each_ref().map(|a| &**a));
-        let Some(surface) = c.shape.contact(at(self.start), end) else { return false };
-        let mut velocity = at(self.velocities.each_ref().map(|a| &**a));
+        let Some((surface, surface_velocity)) = c.contact(at(self.start), end) else { return false };
+        // The response acts on the velocity relative to the surface.
+        let mut velocity = at(self.velocities.each_ref().map(|a| &**a)) - surface_velocity;
         respond(&mut velocity, surface.normal, c.friction, c.restitution);
+        let velocity = velocity + surface_velocity;
         let (point, velocity) = (surface.point.to_array(), velocity.to_array());
         for (axis, (x, v)) in self.positions.iter_mut().zip(&mut self.velocities).enumerate() {
             x[p] = point[axis];
@@ -254,6 +347,8 @@ impl<T: Real> Contacts<T> {
                 shape: ShapeIn::new(&c.shape),
                 friction: T::from_f64(c.friction),
                 restitution: T::from_f64(c.restitution),
+                moving: c.motion.as_ref().map(|m| StepMotion { from: m.at(0.0), to: m.at(0.0), dt: 1.0 }),
+                motion: c.motion.clone(),
             })
             .collect();
         Some(Self { colliders, start: Vectors::zeros(particles) })
@@ -264,6 +359,20 @@ impl<T: Real> Contacts<T> {
         self.start.copy_from(positions);
     }
 
+    /// Whether any collider moves.
+    pub fn any_moving(&self) -> bool {
+        self.colliders.iter().any(|c| c.motion.is_some())
+    }
+
+    /// Moves the moving colliders through the step from time `t` to `t + dt`.
+    pub fn move_colliders(&mut self, t: f64, dt: f64) {
+        for c in &mut self.colliders {
+            if let Some(motion) = &c.motion {
+                c.moving = Some(StepMotion { from: motion.at(t), to: motion.at(t + dt), dt });
+            }
+        }
+    }
+
     /// Moves free particles that are inside a collider out onto its surface, leaving velocities
     /// alone: for a state that starts inside, and within the strain limit's sweeps.
     pub fn project_out(&self, positions: &mut Vectors<T>, inverse_masses: &[T]) {
@@ -272,7 +381,7 @@ impl<T: Real> Contacts<T> {
                 continue;
             }
             for c in &self.colliders {
-                if let Some(surface) = c.shape.inside(positions.get(p)) {
+                if let Some(surface) = c.inside(positions.get(p)) {
                     positions.set(p, surface.point);
                 }
             }
@@ -314,7 +423,8 @@ impl<T: Real> Contacts<T> {
         for block in (0..count).step_by(LANES) {
             let lanes = LANES.min(count - block);
             for c in &self.colliders {
-                let candidates = if lanes == LANES {
+                // A moving collider's particles are seen from its frame one by one.
+                let candidates = if lanes == LANES && c.moving.is_none() {
                     c.shape.reaches_lanes(band.start, band.positions.each_ref().map(|a| &**a), block)
                 } else {
                     [true; LANES]
@@ -334,6 +444,7 @@ impl<T: Real> Contacts<T> {
             ShapeIn::Sphere(_) => "sphere",
             ShapeIn::Box(_) => "box",
             ShapeIn::Cylinder(_) => "cylinder",
+            ShapeIn::Mesh(_) => "mesh",
         };
         self.colliders
             .iter()

@@ -10,7 +10,12 @@ use crate::solver::model::{Model, SpringParams};
 use crate::solver::simulation::{Config, Simulation};
 
 fn plane(friction: f64, restitution: f64) -> Collider {
-    Collider { shape: Shape::Plane { point: DVec3::ZERO, normal: DVec3::Y }, friction, restitution }
+    Collider {
+        shape: Shape::Plane { point: DVec3::ZERO, normal: DVec3::Y },
+        friction,
+        restitution,
+        motion: None,
+    }
 }
 
 /// One free particle of 1 kg at `position` with `velocity`.
@@ -99,12 +104,16 @@ fn a_particle_at_100_m_s_stops_at_a_plane_and_at_a_sphere() {
         shape: Shape::Sphere { center: DVec3::ZERO, radius: 0.3 },
         friction: 0.0,
         restitution: 0.0,
+        motion: None,
     };
     for start in [DVec3::new(-0.8, 0.0, 0.0), DVec3::new(-0.4, 0.05, 0.0)] {
         let model = particle(start, DVec3::new(100.0, 0.0, 0.0));
         let mut sim = Simulation::<f64>::new(
             &model,
-            &Config { gravity: DVec3::ZERO, ..config(IntegratorKind::SymplecticEuler, dt, vec![ball]) },
+            &Config {
+                gravity: DVec3::ZERO,
+                ..config(IntegratorKind::SymplecticEuler, dt, vec![ball.clone()])
+            },
         );
         sim.step().unwrap();
         let x = sim.state().positions.get(0).to_dvec3();
@@ -142,8 +151,11 @@ fn contacts_never_add_kinetic_energy_and_leave_no_particle_inside() {
     for shape in all_shapes() {
         for (friction, restitution) in [(0.0, 1.0), (0.3, 0.0), (2.0, 0.5), (0.0, 0.0)] {
             let (positions, velocities) = scatter(2000);
-            let contacts =
-                Contacts::<f64>::new(&[Collider { shape, friction, restitution }], positions.len()).unwrap();
+            let contacts = Contacts::<f64>::new(
+                &[Collider { shape: shape.clone(), friction, restitution, motion: None }],
+                positions.len(),
+            )
+            .unwrap();
             let mut contacts = contacts;
             contacts.begin_step(&positions);
             let mut state = State { positions: positions.clone(), velocities: velocities.clone() };
@@ -242,11 +254,17 @@ fn colliders_are_stages_only_when_present_each_type_named_once() {
         shape: Shape::Sphere { center: DVec3::ZERO, radius: 0.1 },
         friction: 0.3,
         restitution: 0.0,
+        motion: None,
     };
-    let colliders = vec![ball, plane(0.3, 0.0), ball];
+    let colliders = vec![ball.clone(), plane(0.3, 0.0), ball];
     let both = Simulation::<f64>::new(&model, &config(IntegratorKind::SymplecticEuler, 1e-3, colliders));
     assert_eq!(both.stages(), ["gravity", "sphere", "plane"]);
-    let shapes = all_shapes().into_iter().map(|shape| Collider { shape, friction: 0.3, restitution: 0.0 });
+    let shapes = all_shapes().into_iter().map(|shape| Collider {
+        shape,
+        friction: 0.3,
+        restitution: 0.0,
+        motion: None,
+    });
     let all =
         Simulation::<f64>::new(&model, &config(IntegratorKind::SymplecticEuler, 1e-3, shapes.collect()));
     assert_eq!(all.stages(), ["gravity", "plane", "sphere", "box", "cylinder"]);
@@ -258,12 +276,13 @@ fn single_precision_contacts_hold_as_well() {
         shape: Shape::Sphere { center: DVec3::ZERO, radius: 0.3 },
         friction: 0.5,
         restitution: 0.0,
+        motion: None,
     };
     let mut model = Model::default();
     model.add_particles((0..20).map(|k| DVec3::new(0.01 * k as f64, 1.0, 0.0)), |_| 0.1, DVec3::ZERO);
     let mut sim = Simulation::<f32>::new(
         &model,
-        &config(IntegratorKind::SymplecticEuler, 1e-3, vec![ball, plane(0.5, 0.0)]),
+        &config(IntegratorKind::SymplecticEuler, 1e-3, vec![ball.clone(), plane(0.5, 0.0)]),
     );
     for _ in 0..2000 {
         sim.step().unwrap();
@@ -286,7 +305,7 @@ fn particles_resolved_in_bands_and_lanes_end_as_each_resolved_alone() {
         Shape::Cylinder { center: DVec3::new(-0.6, 0.0, 0.0), radius: 0.25, height: 0.6 },
     ]
     .into_iter()
-    .map(|shape| Collider { shape, friction: 0.3, restitution: 0.2 })
+    .map(|shape| Collider { shape, friction: 0.3, restitution: 0.2, motion: None })
     .collect();
     let n = 2 * crate::solver::parallel::MIN_PARTICLES_PER_BAND + 5;
     let mut seed = 0x9e37_79b9_7f4a_7c15_u64;

@@ -1,0 +1,423 @@
+//! Mesh colliders against brute force and the known answers: the hierarchy finds what a search
+//! of every triangle finds, a closed mesh is told from an open one, fast particles stop at a
+//! sheet, particles inside a solid go out, and contacts bounce and slide as on a plane.
+
+use std::collections::HashMap;
+use std::sync::Arc;
+
+use glam::DVec3;
+
+use super::triangle::{self, Feature};
+use super::triangle_bvh::TriangleBvh;
+use super::*;
+use crate::solver::integrators::IntegratorKind;
+use crate::solver::model::Model;
+use crate::solver::simulation::{Config, Simulation};
+
+/// An icosahedron's faces subdivided `levels` times and pushed onto the sphere, wound outwards.
+pub(crate) fn icosphere(center: DVec3, radius: f64, levels: usize) -> TriangleSurface {
+    let t = (1.0 + 5f64.sqrt()) / 2.0;
+    let mut vertices: Vec<DVec3> = [
+        [-1.0, t, 0.0],
+        [1.0, t, 0.0],
+        [-1.0, -t, 0.0],
+        [1.0, -t, 0.0],
+        [0.0, -1.0, t],
+        [0.0, 1.0, t],
+        [0.0, -1.0, -t],
+        [0.0, 1.0, -t],
+        [t, 0.0, -1.0],
+        [t, 0.0, 1.0],
+        [-t, 0.0, -1.0],
+        [-t, 0.0, 1.0],
+    ]
+    .map(|p| DVec3::from_array(p).normalize())
+    .to_vec();
+    let mut triangles: Vec<[u32; 3]> = vec![
+        [0, 11, 5],
+        [0, 5, 1],
+        [0, 1, 7],
+        [0, 7, 10],
+        [0, 10, 11],
+        [1, 5, 9],
+        [5, 11, 4],
+        [11, 10, 2],
+        [10, 7, 6],
+        [7, 1, 8],
+        [3, 9, 4],
+        [3, 4, 2],
+        [3, 2, 6],
+        [3, 6, 8],
+        [3, 8, 9],
+        [4, 9, 5],
+        [2, 4, 11],
+        [6, 2, 10],
+        [8, 6, 7],
+        [9, 8, 1],
+    ];
+    for _ in 0..levels {
+        let mut middle: HashMap<(u32, u32), u32> = HashMap::new();
+        let mut split = |a: u32, b: u32, vertices: &mut Vec<DVec3>| {
+            *middle.entry((a.min(b), a.max(b))).or_insert_with(|| {
+                vertices.push((vertices[a as usize] + vertices[b as usize]).normalize());
+                vertices.len() as u32 - 1
+            })
+        };
+        triangles = triangles
+            .iter()
+            .flat_map(|&[a, b, c]| {
+                let (ab, bc, ca) =
+                    (split(a, b, &mut vertices), split(b, c, &mut vertices), split(c, a, &mut vertices));
+                [[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]
+            })
+            .collect();
+    }
+    TriangleSurface { vertices: vertices.iter().map(|&v| center + v * radius).collect(), triangles }
+}
+
+/// A flat square sheet of `2 n²` triangles at height `y`, `size` wide, centred on the y axis.
+pub(crate) fn sheet(y: f64, size: f64, n: u32) -> TriangleSurface {
+    let step = size / n as f64;
+    let vertices = (0..=n)
+        .flat_map(|j| {
+            (0..=n).map(move |i| DVec3::new(i as f64 * step - size / 2.0, y, j as f64 * step - size / 2.0))
+        })
+        .collect();
+    let at = |i: u32, j: u32| j * (n + 1) + i;
+    let triangles = (0..n)
+        .flat_map(|j| {
+            (0..n).flat_map(move |i| {
+                [[at(i, j), at(i, j + 1), at(i + 1, j)], [at(i + 1, j), at(i, j + 1), at(i + 1, j + 1)]]
+            })
+        })
+        .collect();
+    TriangleSurface { vertices, triangles }
+}
+
+fn mesh(surface: TriangleSurface, thickness: f64, friction: f64, restitution: f64) -> Collider {
+    Collider {
+        shape: Shape::Mesh { surface: Arc::new(surface), thickness },
+        friction,
+        restitution,
+        motion: None,
+    }
+}
+
+fn particle(position: DVec3, velocity: DVec3) -> Model {
+    let mut m = Model::default();
+    m.add_particles([position], |_| 1.0, velocity);
+    m
+}
+
+/// A deterministic sequence in [-1, 1).
+fn uniform(seed: &mut u64) -> f64 {
+    *seed ^= *seed << 13;
+    *seed ^= *seed >> 7;
+    *seed ^= *seed << 17;
+    (*seed >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+}
+
+fn corners(surface: &TriangleSurface) -> Vec<[Vec3<f64>; 3]> {
+    surface.triangles.iter().map(|t| t.map(|i| Vec3::from_dvec3(surface.vertices[i as usize]))).collect()
+}
+
+#[test]
+fn the_nearest_point_of_a_triangle_is_nearer_than_any_sampled_point_of_it() {
+    let tri = [Vec3::new(0.0, 0.0, 0.0), Vec3::new(1.0, 0.0, 0.0), Vec3::new(0.2, 1.0, 0.3)];
+    let mut seed = 7;
+    for _ in 0..500 {
+        let p = Vec3::new(uniform(&mut seed), uniform(&mut seed), uniform(&mut seed)) * 2.0;
+        let (q, _) = triangle::nearest_point(tri, p);
+        let found = (p - q).length();
+        for i in 0..=40 {
+            for j in 0..=40 - i {
+                let (u, v) = (i as f64 / 40.0, j as f64 / 40.0);
+                let sample = tri[0] + (tri[1] - tri[0]) * u + (tri[2] - tri[0]) * v;
+                assert!(found <= (p - sample).length() + 1e-12, "{p:?}: {q:?} is not nearest");
+            }
+        }
+    }
+    // The features: a point straight above the face, beyond an edge, beyond a corner.
+    assert_eq!(triangle::nearest_point(tri, Vec3::new(0.4, 0.3, 1.0)).1, Feature::Face);
+    assert_eq!(triangle::nearest_point(tri, Vec3::new(0.5, -1.0, 0.0)).1, Feature::Edge(0));
+    assert_eq!(triangle::nearest_point(tri, Vec3::new(-1.0, -1.0, 0.0)), (tri[0], Feature::Vertex(0)));
+}
+
+#[test]
+fn a_segment_crosses_a_triangle_where_it_meets_its_plane() {
+    let tri = [Vec3::new(0.0, 0.0, 0.0), Vec3::new(1.0, 0.0, 0.0), Vec3::new(0.0, 0.0, 1.0)];
+    let crossing = |start: Vec3<f64>, end: Vec3<f64>| triangle::crossing(tri, start, end - start);
+    assert_eq!(crossing(Vec3::new(0.2, 1.0, 0.2), Vec3::new(0.2, -3.0, 0.2)), Some(0.25));
+    assert_eq!(crossing(Vec3::new(0.2, -1.0, 0.2), Vec3::new(0.2, 1.0, 0.2)), Some(0.5));
+    // Short of it, beside it, and within its plane.
+    assert_eq!(crossing(Vec3::new(0.2, 1.0, 0.2), Vec3::new(0.2, 0.5, 0.2)), None);
+    assert_eq!(crossing(Vec3::new(0.8, 1.0, 0.8), Vec3::new(0.8, -1.0, 0.8)), None);
+    assert_eq!(crossing(Vec3::new(-1.0, 0.0, 0.2), Vec3::new(2.0, 0.0, 0.2)), None);
+}
+
+#[test]
+fn the_hierarchy_finds_what_a_search_of_every_triangle_finds() {
+    let sphere = icosphere(DVec3::new(0.1, -0.2, 0.3), 0.7, 3);
+    let corners = corners(&sphere);
+    let bvh = TriangleBvh::new(&corners);
+    assert_eq!(bvh.len(), 1280);
+    let mut seed = 11;
+    let mut point = || Vec3::new(uniform(&mut seed), uniform(&mut seed), uniform(&mut seed)) * 1.5;
+    for _ in 0..300 {
+        let p = point();
+        let brute = corners
+            .iter()
+            .map(|&tri| (p - triangle::nearest_point(tri, p).0).length_squared())
+            .fold(f64::INFINITY, f64::min);
+        let found = bvh.nearest(p, f64::INFINITY).unwrap();
+        assert_eq!(found.distance_squared, brute, "{p:?}");
+        // A radius short of the nearest distance finds nothing.
+        assert!(bvh.nearest(p, 0.999 * brute.sqrt()).is_none());
+
+        let (start, end) = (p, point());
+        let brute = corners
+            .iter()
+            .enumerate()
+            .filter_map(|(t, &tri)| triangle::crossing(tri, start, end - start).map(|s| (t, s)))
+            .min_by(|a, b| a.1.total_cmp(&b.1));
+        let found = bvh.first_crossing(start, end, |_, _| true);
+        assert_eq!(found.map(|f| f.1), brute.map(|b| b.1), "{start:?} to {end:?}");
+    }
+}
+
+#[test]
+fn closed_meshes_are_told_from_open_ones_and_turned_outwards() {
+    let sphere = icosphere(DVec3::ZERO, 1.0, 1);
+    assert!(sphere.is_closed());
+    assert!(!sheet(0.0, 1.0, 4).is_closed());
+    let mut holed = sphere.clone();
+    holed.triangles.pop();
+    assert!(!holed.is_closed());
+    // Inconsistent winding: one triangle flipped.
+    let mut flipped = sphere.clone();
+    flipped.triangles[0].swap(1, 2);
+    assert!(!flipped.is_closed());
+    // Wound inwards: still closed, and the centre is still inside.
+    let mut inwards = sphere.clone();
+    inwards.triangles.iter_mut().for_each(|t| t.swap(1, 2));
+    for surface in [sphere, inwards] {
+        let shape = Shape::Mesh { surface: Arc::new(surface), thickness: 0.01 };
+        assert!(shape.signed_distance(DVec3::ZERO) < -0.9);
+        assert!(shape.signed_distance(DVec3::new(0.0, 2.0, 0.0)) > 0.9);
+    }
+    // Vertices repeated at one position are one vertex: a sphere split along every triangle.
+    let whole = icosphere(DVec3::ZERO, 1.0, 1);
+    let split = TriangleSurface {
+        vertices: whole.triangles.iter().flat_map(|t| t.map(|i| whole.vertices[i as usize])).collect(),
+        triangles: (0..whole.triangles.len() as u32).map(|t| [3 * t, 3 * t + 1, 3 * t + 2]).collect(),
+    };
+    assert!(split.is_closed());
+}
+
+#[test]
+fn the_inside_of_a_closed_mesh_is_exact_at_faces_edges_and_corners() {
+    // A cube's corners and edges are where a face normal alone misjudges the side.
+    let cube = TriangleSurface {
+        vertices: (0..8)
+            .map(|i| {
+                DVec3::new((i & 1) as f64 - 0.5, ((i >> 1) & 1) as f64 - 0.5, ((i >> 2) & 1) as f64 - 0.5)
+            })
+            .collect(),
+        triangles: vec![
+            [0, 2, 1],
+            [1, 2, 3],
+            [4, 5, 6],
+            [5, 7, 6],
+            [0, 1, 4],
+            [1, 5, 4],
+            [2, 6, 3],
+            [3, 6, 7],
+            [0, 4, 2],
+            [2, 4, 6],
+            [1, 3, 5],
+            [3, 7, 5],
+        ],
+    };
+    assert!(cube.is_closed());
+    let shape = Shape::Mesh { surface: Arc::new(cube), thickness: 0.01 };
+    let box_shape = Shape::Box { center: DVec3::ZERO, half_extents: DVec3::splat(0.5) };
+    let mut seed = 3;
+    for _ in 0..2000 {
+        let p = DVec3::new(uniform(&mut seed), uniform(&mut seed), uniform(&mut seed)) * 0.9;
+        let (mesh, exact) = (shape.signed_distance(p), box_shape.signed_distance(p));
+        assert!((mesh - exact).abs() < 1e-12, "{p:?}: mesh {mesh}, box {exact}");
+    }
+}
+
+fn still(dt: f64, colliders: Vec<Collider>) -> Config {
+    Config { integrator: IntegratorKind::SymplecticEuler, dt, colliders, ..Config::default() }
+}
+
+#[test]
+fn a_particle_at_100_m_s_stops_at_a_thin_sheet_from_either_side() {
+    let dt = 1.0 / 60.0;
+    let thickness = 0.005;
+    for integrator in [
+        IntegratorKind::SymplecticEuler,
+        IntegratorKind::Verlet,
+        IntegratorKind::Rk4,
+        IntegratorKind::ImplicitEuler,
+    ] {
+        for (start, velocity) in [(1.0, -100.0), (-1.0, 100.0)] {
+            // Aimed at a shared edge and at a corner of the sheet's triangles as well as inside one.
+            for x in [0.013, 0.0, 0.125] {
+                let model = particle(DVec3::new(x, start, x), DVec3::new(0.0, velocity, 0.0));
+                let colliders = vec![mesh(sheet(0.0, 2.0, 8), thickness, 0.3, 0.0)];
+                let config = Config { integrator, gravity: DVec3::ZERO, ..still(dt, colliders) };
+                let mut sim = Simulation::<f64>::new(&model, &config);
+                sim.step().unwrap();
+                let y = sim.state().positions.get(0).y;
+                let expected = thickness * start.signum();
+                assert!((y - expected).abs() < 1e-12, "{integrator:?} from {start}: at {y}");
+                assert!(sim.state().velocities.get(0).y.abs() < 1e-12);
+            }
+        }
+    }
+}
+
+#[test]
+fn a_particle_inside_a_closed_mesh_goes_out_to_its_nearest_surface() {
+    let sphere = icosphere(DVec3::ZERO, 1.0, 3);
+    let thickness = 0.01;
+    let model = particle(DVec3::new(0.0, 0.0, 0.6), DVec3::ZERO);
+    let sim = Simulation::<f64>::new(&model, &still(1e-3, vec![mesh(sphere.clone(), thickness, 0.3, 0.0)]));
+    let x = sim.state().positions.get(0).to_dvec3();
+    // Out through the nearest face: about 0.4 m out along +z, less the chord error of the
+    // icosphere (below 0.5 % of the radius at three levels).
+    assert!(x.z > 0.99, "{x:?}");
+    let moved = (x - DVec3::new(0.0, 0.0, 0.6)).length();
+    assert!(moved <= 0.4 + thickness + 1e-12 && moved > 0.4 + thickness - 0.005, "{x:?}");
+    let shape = Shape::Mesh { surface: Arc::new(sphere), thickness };
+    assert!((shape.signed_distance(x) - thickness).abs() < 1e-12);
+}
+
+#[test]
+fn a_dropped_particle_rebounds_from_a_mesh_floor_as_from_a_plane() {
+    for e in [0.5, 0.8] {
+        let run = |collider: Collider| {
+            let model = particle(DVec3::new(0.1, 1.0, 0.2), DVec3::ZERO);
+            let mut sim = Simulation::<f64>::new(&model, &still(1e-4, vec![collider]));
+            let mut peak: f64 = 0.0;
+            let mut bounced = false;
+            for _ in 0..13_000 {
+                sim.step().unwrap();
+                let (x, v) = (sim.state().positions.get(0), sim.state().velocities.get(0));
+                bounced |= v.y > 0.0;
+                if bounced {
+                    peak = peak.max(x.y);
+                }
+            }
+            peak
+        };
+        let thickness = 0.01;
+        let floor = run(mesh(sheet(-thickness, 4.0, 4), thickness, 0.3, e));
+        let plane = run(Collider {
+            shape: Shape::Plane { point: DVec3::ZERO, normal: DVec3::Y },
+            friction: 0.3,
+            restitution: e,
+            motion: None,
+        });
+        assert!((floor - plane).abs() < 1e-9, "e {e}: mesh {floor}, plane {plane}");
+        assert!((floor - e * e).abs() < 0.02 * e * e, "e {e}: peak {floor}");
+    }
+}
+
+#[test]
+fn sliding_on_a_mesh_stops_after_v_squared_over_two_mu_g() {
+    let (mu, speed, g) = (0.4, 2.0, 9.81);
+    let thickness = 0.01;
+    let model = particle(DVec3::new(-1.0, 0.0, 0.1), DVec3::new(speed, 0.0, 0.0));
+    let colliders = vec![mesh(sheet(-thickness, 4.0, 16), thickness, mu, 0.0)];
+    let mut sim = Simulation::<f64>::new(&model, &still(1e-4, colliders));
+    for _ in 0..20_000 {
+        sim.step().unwrap();
+    }
+    let travelled = sim.state().positions.get(0).x + 1.0;
+    let expected = speed * speed / (2.0 * mu * g);
+    assert!((travelled - expected).abs() < 0.01 * expected, "travelled {travelled}, expected {expected}");
+    assert!(sim.state().velocities.get(0).length() < 1e-9);
+    assert!(sim.state().positions.get(0).y.abs() < 1e-12);
+}
+
+#[test]
+fn contacts_with_a_mesh_never_add_energy_nor_leave_a_particle_inside() {
+    let sphere = icosphere(DVec3::new(0.1, 0.0, 0.0), 0.5, 2);
+    let thickness = 0.02;
+    for (friction, restitution) in [(0.0, 1.0), (0.3, 0.0), (2.0, 0.5)] {
+        let collider = mesh(sphere.clone(), thickness, friction, restitution);
+        let shape = collider.shape.clone();
+        let mut seed = 5;
+        let mut next = || uniform(&mut seed);
+        let mut outside = || loop {
+            let p = Vec3::new(next(), next(), next());
+            if shape.signed_distance(p.to_dvec3()) >= thickness {
+                return p;
+            }
+        };
+        let start: Vectors<f64> = (0..1000).map(|_| outside()).collect();
+        let mut seed = 17;
+        let mut next = || uniform(&mut seed);
+        let end: Vectors<f64> =
+            start.iter().map(|p| Vec3::new(next(), next(), next()) * 0.8 + p * 0.5).collect();
+        let velocities: Vectors<f64> = (0..1000).map(|_| Vec3::new(next(), next(), next()) * 3.0).collect();
+        let mut contacts = Contacts::<f64>::new(&[collider], 1000).unwrap();
+        contacts.begin_step(&start);
+        let mut state = State { positions: end, velocities: velocities.clone() };
+        contacts.resolve(&mut state, &[1.0; 1000]);
+        for p in 0..1000 {
+            let (before, after) =
+                (velocities.get(p).length_squared(), state.velocities.get(p).length_squared());
+            assert!(after <= before * (1.0 + 1e-12), "{p} gained energy: {before} -> {after}");
+            let distance = shape.signed_distance(state.positions.get(p).to_dvec3());
+            assert!(distance > thickness - 1e-9, "particle {p} at {distance}, inside the thickness");
+        }
+    }
+}
+
+#[test]
+fn single_precision_mesh_contacts_hold_as_well() {
+    let dt = 1.0 / 60.0;
+    let model = particle(DVec3::new(0.3, 1.0, -0.2), DVec3::new(0.0, -100.0, 0.0));
+    let colliders = vec![mesh(icosphere(DVec3::new(0.0, -1.0, 0.0), 1.0, 2), 0.005, 0.3, 0.0)];
+    let mut sim =
+        Simulation::<f32>::new(&model, &Config { gravity: DVec3::ZERO, ..still(dt, colliders.clone()) });
+    sim.step().unwrap();
+    let x = sim.state().positions.get(0).to_dvec3();
+    let distance = colliders[0].shape.signed_distance(x);
+    assert!((distance - 0.005).abs() < 1e-5, "{x:?} at {distance}");
+}
+
+#[test]
+fn a_mesh_is_a_stage_named_mesh_only_when_present() {
+    let model = particle(DVec3::new(0.0, 1.0, 0.0), DVec3::ZERO);
+    let none = Simulation::<f64>::new(&model, &still(1e-3, vec![]));
+    assert!(!none.stages().contains(&"mesh"));
+    let two = vec![mesh(sheet(0.0, 1.0, 2), 0.01, 0.3, 0.0), mesh(sheet(0.5, 1.0, 2), 0.01, 0.3, 0.0)];
+    let with = Simulation::<f64>::new(&model, &still(1e-3, two));
+    assert_eq!(with.stages(), ["gravity", "mesh"]);
+}
+
+#[test]
+fn degenerate_triangles_are_left_out_and_never_make_a_nan() {
+    let mut surface = sheet(0.0, 1.0, 2);
+    // A triangle with a repeated corner and one with three corners in a line.
+    surface.vertices.extend([
+        DVec3::new(0.0, 0.0, 0.0),
+        DVec3::new(0.1, 0.0, 0.0),
+        DVec3::new(0.2, 0.0, 0.0),
+    ]);
+    let n = surface.vertices.len() as u32;
+    surface.triangles.extend([[n - 3, n - 3, n - 1], [n - 3, n - 2, n - 1]]);
+    let collider = mesh(surface, 0.01, 0.3, 0.0);
+    let model = particle(DVec3::new(0.1, 0.5, 0.0), DVec3::new(0.0, -50.0, 0.0));
+    let mut sim =
+        Simulation::<f64>::new(&model, &Config { gravity: DVec3::ZERO, ..still(0.05, vec![collider]) });
+    sim.step().unwrap();
+    let x = sim.state().positions.get(0).to_dvec3();
+    assert!((x.y - 0.01).abs() < 1e-12, "{x:?}");
+}

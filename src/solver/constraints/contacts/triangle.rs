@@ -1,0 +1,87 @@
+//! One triangle: the nearest point on it to a point (and which feature that point is on), and
+//! where a segment crosses it.
+
+use crate::solver::math::real::Real;
+use crate::solver::math::vec3::Vec3;
+
+/// The part of a triangle its nearest point lies on. Edge `k` runs from corner `k` to corner
+/// `(k + 1) % 3`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Feature {
+    /// Inside the triangle.
+    Face,
+    /// On an edge, between its ends.
+    Edge(u8),
+    /// At a corner.
+    Vertex(u8),
+}
+
+/// The point of triangle `[a, b, c]` nearest to `p`, and the feature it lies on (Ericson,
+/// *Real-Time Collision Detection*, 5.1.5: the Voronoi regions of the corners, then the edges,
+/// then the face). The triangle must have positive area; a denominator that rounds to zero
+/// still gives a point on the triangle.
+#[inline]
+pub(crate) fn nearest_point<T: Real>([a, b, c]: [Vec3<T>; 3], p: Vec3<T>) -> (Vec3<T>, Feature) {
+    let ratio = |num: T, den: T| if den > T::ZERO { num / den } else { T::ZERO };
+    let (ab, ac, ap) = (b - a, c - a, p - a);
+    let (d1, d2) = (ab.dot(ap), ac.dot(ap));
+    if d1 <= T::ZERO && d2 <= T::ZERO {
+        return (a, Feature::Vertex(0));
+    }
+    let bp = p - b;
+    let (d3, d4) = (ab.dot(bp), ac.dot(bp));
+    if d3 >= T::ZERO && d4 <= d3 {
+        return (b, Feature::Vertex(1));
+    }
+    let vc = d1 * d4 - d3 * d2;
+    if vc <= T::ZERO && d1 >= T::ZERO && d3 <= T::ZERO {
+        return (a + ab * ratio(d1, d1 - d3), Feature::Edge(0));
+    }
+    let cp = p - c;
+    let (d5, d6) = (ab.dot(cp), ac.dot(cp));
+    if d6 >= T::ZERO && d5 <= d6 {
+        return (c, Feature::Vertex(2));
+    }
+    let vb = d5 * d2 - d1 * d6;
+    if vb <= T::ZERO && d2 >= T::ZERO && d6 <= T::ZERO {
+        return (a + ac * ratio(d2, d2 - d6), Feature::Edge(2));
+    }
+    let va = d3 * d6 - d5 * d4;
+    if va <= T::ZERO && d4 - d3 >= T::ZERO && d5 - d6 >= T::ZERO {
+        return (b + (c - b) * ratio(d4 - d3, (d4 - d3) + (d5 - d6)), Feature::Edge(1));
+    }
+    let sum = va + vb + vc;
+    (a + ab * ratio(vb, sum) + ac * ratio(vc, sum), Feature::Face)
+}
+
+/// The largest amount by which a crossing may miss the triangle, in barycentric coordinates:
+/// enough that a segment through a shared edge or corner meets at least one of the triangles
+/// around it despite rounding.
+const WATERTIGHT_SLACK: f64 = 1e-6;
+
+/// Where the segment `start + s · d`, `s` in [0, 1], crosses the plane of triangle `[a, b, c]`
+/// within the triangle (widened by [`WATERTIGHT_SLACK`]): the parameter `s`. A segment in the
+/// triangle's plane does not cross it (Möller and Trumbore's test).
+#[inline]
+pub(crate) fn crossing<T: Real>([a, b, c]: [Vec3<T>; 3], start: Vec3<T>, d: Vec3<T>) -> Option<T> {
+    let (e1, e2) = (b - a, c - a);
+    let pvec = d.cross(e2);
+    let det = e1.dot(pvec);
+    if det == T::ZERO || !det.is_finite() {
+        return None;
+    }
+    let inverse = T::ONE / det;
+    let slack = T::from_f64(WATERTIGHT_SLACK);
+    let tvec = start - a;
+    let u = tvec.dot(pvec) * inverse;
+    if !(u >= -slack && u <= T::ONE + slack) {
+        return None;
+    }
+    let qvec = tvec.cross(e1);
+    let v = d.dot(qvec) * inverse;
+    if !(v >= -slack && u + v <= T::ONE + slack) {
+        return None;
+    }
+    let s = e2.dot(qvec) * inverse;
+    (s >= T::ZERO && s <= T::ONE).then_some(s)
+}
