@@ -505,6 +505,8 @@ fn drape_tester_reports_the_coefficient_of_its_shadow() {
     let folds =
         (0..m).filter(|&i| smooth[i] > smooth[(i + m - 1) % m] && smooth[i] >= smooth[(i + 1) % m]).count();
     assert_eq!(folds, 6);
+}
+
 #[test]
 fn cantilever_strip_rests_at_the_heavy_elasticas_chord_angle() {
     // A strip clamped by its first two columns (the clamp's edge midway between them) over a free

@@ -15,8 +15,8 @@
 
 use crate::run::{MAX_ROW_CROSSINGS_PER_TRIANGLE, MAX_ROWS};
 use crate::scene::{
-    Body, ClothShape, ColliderSpec, Compiled, Field, FrameSelection, IntegratorName, MeshColliderSpec, Precision,
-    Scene,
+    Body, ClothShape, ColliderSpec, Compiled, Field, FrameSelection, IntegratorName, MeshColliderSpec,
+    Precision, Scene,
 };
 use crate::solver::{WindModel, candidate_pairs};
 

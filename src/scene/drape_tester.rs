@@ -29,15 +29,22 @@ impl DrapeTester {
     /// The tester in `scene`, whose bodies built `model` and own `body_triangles` of its
     /// triangles, one range per body; `None` when the scene is not one.
     pub(super) fn find(scene: &Scene, model: &Model, body_triangles: &[Range<usize>]) -> Option<Self> {
-        let [ColliderSpec::Cylinder(cylinder)] = scene.colliders[..] else {
+        // A support that moves is no drape tester; a placed one is measured where it is put.
+        let [support @ ColliderSpec::Cylinder(cylinder)] = &scene.colliders[..] else {
             return None;
         };
+        if cylinder.motion.is_some() {
+            return None;
+        }
+        let placement = support.placement();
+        let center = placement.point(glam::DVec3::from_array(cylinder.center));
+        let radius = placement.scale * cylinder.radius;
         let mut disks = scene.bodies.iter().zip(body_triangles).filter_map(|(body, triangles)| match body {
             Body::Cloth(c) if c.shape == ClothShape::Disk => Some((c, triangles)),
             _ => None,
         });
         let (specimen, triangles) = disks.next()?;
-        if disks.next().is_some() || specimen.disk_diameter() <= 2.0 * cylinder.radius {
+        if disks.next().is_some() || specimen.disk_diameter() <= 2.0 * radius {
             return None;
         }
         let specimen_area = model.triangles[triangles.clone()]
@@ -50,8 +57,8 @@ impl DrapeTester {
         Some(Self {
             triangles: triangles.clone(),
             specimen_area,
-            support_center: [cylinder.center[0], cylinder.center[2]],
-            support_radius: cylinder.radius,
+            support_center: [center.x, center.z],
+            support_radius: radius,
         })
     }
 

@@ -6,8 +6,8 @@ use super::fabrics::FabricSpec;
 use super::placement::{Placement, ROTATION_NORM_TOLERANCE};
 use super::types::MotionSpec;
 use super::types::{
-    BendingModelName, Body, BodyMaterial, ClothShape, ColliderSpec, Field, Format, FrameSelection, GridSprings,
-    Output, Scene, SpringSpec, WindSpec,
+    BendingModelName, Body, BodyMaterial, ClothShape, ColliderSpec, Field, Format, FrameSelection,
+    GridSprings, Output, Scene, SpringSpec, WindSpec,
 };
 
 /// Collects problems, each at its JSON Pointer.
