@@ -12,6 +12,8 @@
 //!   errors, CSV and a work-precision plot.
 //! - [`jobs`]: the worker threads that run scenes off the async runtime, limits, cancellation,
 //!   progress, and the job stores (memory, SQLite, PostgreSQL) that are also the queue.
+//! - [`assets`]: mesh files (OBJ, GLB) read into vertices and triangles, their stored form, and
+//!   the references a scene makes to them.
 //! - [`api`]: the HTTP API over [`jobs`]: routes, problem+json errors, limits, OpenAPI.
 //! - [`config`] and [`server`]: the settings of `drape serve` and the server's life.
 //! - [`progress`]: the progress bar `drape run` and `drape sweep` draw on a terminal.
