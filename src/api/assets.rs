@@ -10,6 +10,7 @@ use axum::response::{IntoResponse, Response};
 use serde_json::{Value, json};
 
 use super::AppState;
+use super::extract::{body_bytes, content_type};
 use super::problem::AppError;
 use super::views::rfc3339;
 use crate::assets::{MeshFormat, is_asset_id};
@@ -72,24 +73,11 @@ impl<S: Send + Sync> FromRequest<S> for MeshBody {
     type Rejection = AppError;
 
     async fn from_request(request: Request, state: &S) -> Result<Self, AppError> {
-        let content_type = request
-            .headers()
-            .get(header::CONTENT_TYPE)
-            .map(|v| String::from_utf8_lossy(v.as_bytes()).into_owned());
+        let content_type = content_type(&request);
         let Some(format) = content_type.as_deref().and_then(MeshFormat::from_media_type) else {
             return Err(AppError::NotAMeshType { found: content_type });
         };
-        let bytes = Bytes::from_request(request, state).await.map_err(|rejection| {
-            if rejection.status() == StatusCode::PAYLOAD_TOO_LARGE {
-                AppError::BodyTooLarge
-            } else {
-                AppError::BadRequest {
-                    detail: format!("the body could not be read: {rejection}"),
-                    errors: vec![],
-                }
-            }
-        })?;
-        Ok(Self(format, bytes))
+        Ok(Self(format, body_bytes(request, state).await?))
     }
 }
 

@@ -153,6 +153,25 @@ impl FromRequest<AppState> for SceneBody {
     }
 }
 
+/// The request's `Content-Type`, as text.
+pub(super) fn content_type(request: &Request) -> Option<String> {
+    request.headers().get(header::CONTENT_TYPE).map(|v| String::from_utf8_lossy(v.as_bytes()).into_owned())
+}
+
+/// The whole body (the body-limit layer has bounded it: past the limit is a 413).
+pub(super) async fn body_bytes<S: Send + Sync>(request: Request, state: &S) -> Result<Bytes, AppError> {
+    Bytes::from_request(request, state).await.map_err(|rejection| {
+        if rejection.status() == StatusCode::PAYLOAD_TOO_LARGE {
+            AppError::BodyTooLarge
+        } else {
+            AppError::BadRequest {
+                detail: format!("the body could not be read: {rejection}"),
+                errors: vec![],
+            }
+        }
+    })
+}
+
 /// A JSON document from a body declared as JSON.
 pub struct JsonBody(pub Value);
 
@@ -160,23 +179,11 @@ impl<S: Send + Sync> FromRequest<S> for JsonBody {
     type Rejection = AppError;
 
     async fn from_request(request: Request, state: &S) -> Result<Self, AppError> {
-        let content_type = request
-            .headers()
-            .get(header::CONTENT_TYPE)
-            .map(|v| String::from_utf8_lossy(v.as_bytes()).into_owned());
+        let content_type = content_type(&request);
         if !content_type.as_deref().is_some_and(is_json) {
             return Err(AppError::UnsupportedMediaType { found: content_type });
         }
-        let bytes = Bytes::from_request(request, state).await.map_err(|rejection| {
-            if rejection.status() == StatusCode::PAYLOAD_TOO_LARGE {
-                AppError::BodyTooLarge
-            } else {
-                AppError::BadRequest {
-                    detail: format!("the body could not be read: {rejection}"),
-                    errors: vec![],
-                }
-            }
-        })?;
+        let bytes = body_bytes(request, state).await?;
         let document: Value = serde_json::from_slice(&bytes).map_err(|e| AppError::MalformedJson {
             line: e.line(),
             column: e.column(),
