@@ -214,10 +214,9 @@ fn closed_meshes_are_told_from_open_ones_and_turned_outwards() {
     assert!(split.is_closed());
 }
 
-#[test]
-fn the_inside_of_a_closed_mesh_is_exact_at_faces_edges_and_corners() {
-    // A cube's corners and edges are where a face normal alone misjudges the side.
-    let cube = TriangleSurface {
+/// A closed cube of side 1 centred at the origin, its triangles facing out.
+pub(super) fn unit_cube() -> TriangleSurface {
+    TriangleSurface {
         vertices: (0..8)
             .map(|i| {
                 DVec3::new((i & 1) as f64 - 0.5, ((i >> 1) & 1) as f64 - 0.5, ((i >> 2) & 1) as f64 - 0.5)
@@ -237,7 +236,13 @@ fn the_inside_of_a_closed_mesh_is_exact_at_faces_edges_and_corners() {
             [1, 3, 5],
             [3, 7, 5],
         ],
-    };
+    }
+}
+
+#[test]
+fn the_inside_of_a_closed_mesh_is_exact_at_faces_edges_and_corners() {
+    // A cube's corners and edges are where a face normal alone misjudges the side.
+    let cube = unit_cube();
     assert!(cube.is_closed());
     let shape = Shape::Mesh { surface: Arc::new(cube), thickness: 0.01 };
     let box_shape = Shape::Box { center: DVec3::ZERO, half_extents: DVec3::splat(0.5) };

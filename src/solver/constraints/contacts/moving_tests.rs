@@ -5,7 +5,7 @@ use std::sync::Arc;
 
 use glam::{DQuat, DVec3};
 
-use super::mesh_tests::sheet;
+use super::mesh_tests::{sheet, unit_cube};
 use super::*;
 use crate::solver::integrators::IntegratorKind;
 use crate::solver::model::Model;
@@ -110,27 +110,7 @@ fn a_turning_closed_mesh_keeps_particles_out() {
         angular_velocity: DVec3::new(0.0, 0.0, 20.0),
     };
     // A cube of side 1 turning about z at 20 rad/s through particles scattered around it.
-    let cube = TriangleSurface {
-        vertices: (0..8)
-            .map(|i| {
-                DVec3::new((i & 1) as f64 - 0.5, ((i >> 1) & 1) as f64 - 0.5, ((i >> 2) & 1) as f64 - 0.5)
-            })
-            .collect(),
-        triangles: vec![
-            [0, 2, 1],
-            [1, 2, 3],
-            [4, 5, 6],
-            [5, 7, 6],
-            [0, 1, 4],
-            [1, 5, 4],
-            [2, 6, 3],
-            [3, 6, 7],
-            [0, 4, 2],
-            [2, 4, 6],
-            [1, 3, 5],
-            [3, 7, 5],
-        ],
-    };
+    let cube = unit_cube();
     let collider = Collider {
         shape: Shape::Mesh { surface: Arc::new(cube), thickness: 0.005 },
         friction: 0.3,
