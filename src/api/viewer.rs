@@ -8,6 +8,9 @@
 //! without a token, like `/healthz` (a browser sends none when it navigates); every API call the
 //! page makes carries the token its user gives it.
 
+use std::collections::HashMap;
+use std::sync::LazyLock;
+
 use axum::extract::Path;
 use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Response};
@@ -73,9 +76,20 @@ pub(super) async fn file(Path(name): Path<String>, headers: HeaderMap) -> Result
     Ok(serve(asset, &headers))
 }
 
+/// Every file's `ETag`, by name, hashed once: the files are part of the binary and never change
+/// while it runs.
+static ETAGS: LazyLock<HashMap<&'static str, HeaderValue>> = LazyLock::new(|| {
+    std::iter::once(&INDEX)
+        .chain(FILES)
+        .map(|asset| {
+            let etag = format!("\"{:016x}\"", fnv1a(asset.bytes));
+            (asset.name, HeaderValue::from_str(&etag).expect("hex digits in quotes are a header value"))
+        })
+        .collect()
+});
+
 fn serve(asset: &Asset, headers: &HeaderMap) -> Response {
-    let etag = format!("\"{:016x}\"", fnv1a(asset.bytes));
-    let etag = HeaderValue::from_str(&etag).expect("hex digits in quotes are a header value");
+    let etag = ETAGS[asset.name].clone();
     let cache = [(header::CACHE_CONTROL, HeaderValue::from_static("no-cache")), (header::ETAG, etag.clone())];
     let fresh = headers
         .get(header::IF_NONE_MATCH)
