@@ -275,13 +275,16 @@ impl Statements {
                 "SELECT status, message, result FROM sweep_runs WHERE sweep_id = $1 ORDER BY idx".into(),
             ),
             // The runs of one sweep, the oldest with runs to claim.
+            // The runs are picked in a CTE, evaluated once: PostgreSQL may evaluate an `IN`
+            // subquery again for each row it updates, and each time skip other rows.
             claim_sweep_runs: placeholders(format!(
-                "UPDATE sweep_runs SET status = 'running', lease_owner = $1, lease_until_ms = $2, \
-                 attempts = attempts + 1 \
-                 WHERE seq IN (SELECT seq FROM sweep_runs WHERE {claimable} AND sweep_id = \
+                "WITH picked AS (SELECT seq FROM sweep_runs WHERE {claimable} AND sweep_id = \
                  (SELECT sweep_id FROM sweep_runs WHERE {claimable} ORDER BY seq LIMIT 1) \
                  ORDER BY seq LIMIT $4 {lock}) \
-                 AND {claimable} RETURNING sweep_id, idx, attempts, cancel_requested"
+                 UPDATE sweep_runs SET status = 'running', lease_owner = $1, lease_until_ms = $2, \
+                 attempts = attempts + 1 \
+                 WHERE seq IN (SELECT seq FROM picked) AND {claimable} \
+                 RETURNING sweep_id, idx, attempts, cancel_requested"
             )),
             renew_sweep_runs: placeholders(
                 "UPDATE sweep_runs SET lease_until_ms = $1 WHERE lease_owner = $2 AND status = 'running' \
