@@ -309,7 +309,7 @@ mod tests {
         assert_eq!(cli.config.store, StoreUrl::Sqlite("drape.db".into()));
         assert_eq!(cli.config.jobs().result_ttl, Duration::from_secs(86_400));
         assert_eq!(cli.config.jobs().lease, Duration::from_secs(30));
-        assert_eq!(cli.config.api().max_sweep_variants, 1000);
+        assert_eq!(cli.config.api().max_sweep_variants, 10_000);
         assert_eq!(cli.config.jobs().max_attempts, 3);
         assert_eq!(cli.config.api().auth_tokens, []);
         assert_eq!(cli.config.api().header_read_timeout, Duration::from_secs(10));

@@ -10,7 +10,7 @@ mod serve;
 
 use std::collections::HashMap;
 
-use serve::{Server, ended, job, result, submit, under_way, wait_for};
+use serve::{Server, ended, job, result, submit, submit_sweep, sweep, under_way, wait_for, wait_for_sweep};
 
 /// About 20 ms of work: long enough that both instances get some of the 40 jobs.
 const SMALL: &str = r#"{"duration": 1, "dt": 0.001, "bodies": [{"type": "chain", "count": 500}],
@@ -45,6 +45,67 @@ async fn runs_on(id: &str, one: &Server, two: &Server) -> bool {
     })
     .await
     .expect("an instance logs the start of the job")
+}
+
+/// A sweep of `count` variants of a 500-particle chain, about 20 ms each.
+fn sweep_of(count: usize) -> String {
+    let dts: Vec<f64> = (0..count).map(|n| 0.001 + 0.00001 * n as f64).collect();
+    serde_json::json!({
+        "scene": {"duration": 1, "bodies": [{"type": "chain", "count": 500}], "error_estimate": "none"},
+        "vary": {"/dt": dts},
+    })
+    .to_string()
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+#[ignore = "needs PostgreSQL on 127.0.0.1:5432 (or DRAPE_TEST_POSTGRES); see README.md, Run the tests"]
+async fn two_instances_share_the_sweeps_of_one_postgres_database() {
+    let database = pg::TestDatabase::create().await;
+    let dir = tempfile::tempdir().unwrap();
+    let args = ["--workers", "1", "--lease", "1"];
+    let one = Server::start(dir.path(), &database.url, &args);
+    let two = Server::start(dir.path(), &database.url, &args);
+    let client = reqwest::Client::new();
+
+    // Posted to one, read through the other; both run its runs, each once.
+    let id = submit_sweep(&client, &one.base, &sweep_of(40)).await;
+    let done = wait_for_sweep(&client, &two.base, &id, |s| s["complete"] == true).await;
+    assert_eq!(done["progress"]["finished"], 40);
+    for row in done["rows"].as_array().unwrap() {
+        assert_eq!(row["status"], "succeeded", "{row}");
+        assert_eq!(row["steps"].as_f64(), Some((1.0 / row["dt"].as_f64().unwrap()).round()), "{row}");
+    }
+    let csv = client.get(format!("{}/sweeps/{id}?format=csv", one.base)).send().await.unwrap();
+    assert_eq!(csv.status(), 200);
+    assert_eq!(csv.text().await.unwrap().lines().count(), 41, "a header and a record per variant");
+    let listed: serde_json::Value =
+        client.get(format!("{}/sweeps", two.base)).send().await.unwrap().json().await.unwrap();
+    assert_eq!(listed["sweeps"][0]["id"], id.as_str());
+
+    // A long sweep posted to one and cancelled through the other stops on both: its running
+    // runs end cancelled and its waiting ones never start.
+    let long = serde_json::json!({
+        "scene": {"duration": 1000, "gravity": [0, 0, 0], "bodies": [{"type": "chain", "count": 10000}],
+                  "output": {"frames": "none"}},
+        "vary": {"/dt": [0.001, 0.0011, 0.0012, 0.0013, 0.0014, 0.0015]},
+    });
+    let long = submit_sweep(&client, &one.base, &long.to_string()).await;
+    wait_for_sweep(&client, &two.base, &long, |s| s["progress"]["running"].as_u64() >= Some(1)).await;
+    let events = client.get(format!("{}/sweeps/{long}/events", one.base)).send().await.unwrap();
+    let response = client.delete(format!("{}/sweeps/{long}", two.base)).send().await.unwrap();
+    assert_eq!(response.status(), 202);
+    let cancelled = wait_for_sweep(&client, &one.base, &long, |s| s["complete"] == true).await;
+    for row in cancelled["rows"].as_array().unwrap() {
+        assert_eq!(row["status"], "cancelled", "{row}");
+    }
+    let stream =
+        tokio::time::timeout(serve::PATIENCE, events.text()).await.expect("the stream ends").unwrap();
+    let blocks: Vec<&str> = stream.split("\n\n").filter(|b| !b.trim().is_empty()).collect();
+    assert!(blocks[0].starts_with("event: progress\ndata: "), "{stream:?}");
+    let end = blocks.last().and_then(|b| b.strip_prefix("event: end\ndata: ")).expect("an end event last");
+    let end: serde_json::Value = serde_json::from_str(end).unwrap();
+    assert_eq!((end["id"].as_str(), end["complete"].as_bool()), (Some(long.as_str()), Some(true)));
+    assert_eq!(sweep(&client, &two.base, &long).await["cancel_requested"], true);
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

@@ -8,13 +8,56 @@ mod deadline;
 mod serve;
 
 use serde::de::IgnoredAny;
-use serve::{Server, ended, job, result, submit, under_way, wait_for};
+use serve::{Server, ended, job, result, submit, submit_sweep, under_way, wait_for, wait_for_sweep};
 
 const TINY: &str = r#"{"duration": 0.1, "dt": 0.01, "bodies": [{"type": "chain", "count": 3}],
                       "output": {"frames": "final"}}"#;
 /// Long enough to be killed in the middle (a few seconds), short enough to run again.
 const MEDIUM: &str = r#"{"duration": 15, "dt": 0.001, "gravity": [0, 0, 0], "bodies": [{"type": "chain", "count": 20000}],
                         "output": {"frames": "final"}}"#;
+
+/// 2 integrators × 12 steps of a 5,000-particle chain: a few seconds of runs, long enough to be
+/// killed in the middle, each run tens of milliseconds.
+fn sweep_of_chains() -> String {
+    let dts: Vec<f64> = (0..12).map(|n| 0.001 + 0.0001 * f64::from(n)).collect();
+    serde_json::json!({
+        "scene": {"duration": 0.5, "gravity": [0, -9.81, 0],
+                  "bodies": [{"type": "chain", "count": 5000, "mass": 500, "spring": {"k": 1000}, "pin": [0]}]},
+        "vary": {"/integrator": ["symplectic_euler", "verlet"], "/dt": dts},
+        "reference": {"integrator": "rk4", "dt": 0.0005},
+    })
+    .to_string()
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_sweep_killed_in_the_middle_completes_after_a_restart() {
+    let dir = tempfile::tempdir().unwrap();
+    let store = "sqlite://jobs.db";
+    let client = reqwest::Client::new();
+
+    let first = Server::start(dir.path(), store, &["--workers", "1"]);
+    let id = submit_sweep(&client, &first.base, &sweep_of_chains()).await;
+    let part_way =
+        wait_for_sweep(&client, &first.base, &id, |s| s["progress"]["finished"].as_u64() >= Some(2)).await;
+    assert_eq!(part_way["complete"], false, "killed in the middle: {}", part_way["progress"]);
+    first.kill();
+
+    let second = Server::start(dir.path(), store, &["--workers", "1"]);
+    let listed: serde_json::Value =
+        client.get(format!("{}/sweeps", second.base)).send().await.unwrap().json().await.unwrap();
+    assert_eq!(listed["sweeps"][0]["id"], id.as_str(), "the restarted server lists the sweep");
+    let done = wait_for_sweep(&client, &second.base, &id, |s| s["complete"] == true).await;
+    assert_eq!(done["progress"]["finished"], 25);
+    assert_eq!(done["reference"]["status"], "succeeded", "{}", done["reference"]);
+    let rows = done["rows"].as_array().unwrap();
+    assert_eq!(rows.len(), 24);
+    for row in rows {
+        assert_eq!(row["status"], "succeeded", "{row}");
+        let steps = (0.5 / row["dt"].as_f64().unwrap()).round();
+        assert_eq!(row["steps"].as_f64(), Some(steps), "{row}");
+        assert!(row["error_vs_reference"]["max"].as_f64().unwrap() > 0.0, "{row}");
+    }
+}
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_killed_server_restarted_on_its_sqlite_file_finishes_every_job() {

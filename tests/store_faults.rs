@@ -9,8 +9,9 @@ use std::time::Duration;
 
 use async_trait::async_trait;
 use drape::jobs::{
-    AssetRecord, AssetRoom, CancelRequest, Claim, Inserted, JobId, JobRecord, JobStatus, JobStore, Jobs,
-    JobsConfig, Lease, MemoryStore, Outcome, Page, PutAsset, Renewed, StoreError, StoredResult, Submission,
+    AssetRecord, AssetRoom, CancelRequest, Claim, ClaimedRuns, HeldRun, Inserted, JobId, JobRecord,
+    JobStatus, JobStore, Jobs, JobsConfig, Lease, MemoryStore, Outcome, Page, PutAsset, Renewed, RunEnd,
+    StoreError, StoredResult, StoredRun, Submission, SweepEntry, SweepSummary,
 };
 use drape::scene::{Compiled, Scene};
 use serde_json::json;
@@ -147,6 +148,46 @@ impl JobStore for Faulty {
     }
     async fn delete_asset(&self, id: &str) -> Result<bool, StoreError> {
         self.inner.delete_asset(id).await
+    }
+    async fn insert_sweep(&self, sweep: &SweepEntry, document: &str) -> Result<(), StoreError> {
+        self.inner.insert_sweep(sweep, document).await
+    }
+    async fn sweep(&self, id: &JobId) -> Result<Option<SweepSummary>, StoreError> {
+        self.inner.sweep(id).await
+    }
+    async fn sweep_document(&self, id: &JobId) -> Result<Option<String>, StoreError> {
+        self.inner.sweep_document(id).await
+    }
+    async fn list_sweeps(&self, page: Page) -> Result<Vec<SweepSummary>, StoreError> {
+        self.inner.list_sweeps(page).await
+    }
+    async fn sweep_runs(&self, id: &JobId) -> Result<Vec<StoredRun>, StoreError> {
+        self.inner.sweep_runs(id).await
+    }
+    async fn claim_sweep_runs(
+        &self,
+        lease: &Lease,
+        now_ms: u64,
+        max_runs: u32,
+    ) -> Result<Option<ClaimedRuns>, StoreError> {
+        self.inner.claim_sweep_runs(lease, now_ms, max_runs).await
+    }
+    async fn renew_sweep_runs(&self, lease: &Lease) -> Result<Vec<HeldRun>, StoreError> {
+        self.inner.renew_sweep_runs(lease).await
+    }
+    async fn finish_sweep_run(&self, sweep: &JobId, owner: &str, end: RunEnd) -> Result<bool, StoreError> {
+        self.inner.finish_sweep_run(sweep, owner, end).await
+    }
+    async fn release_sweep_runs(&self, sweep: &JobId, owner: &str, runs: &[u32]) -> Result<(), StoreError> {
+        self.inner.release_sweep_runs(sweep, owner, runs).await
+    }
+    async fn cancel_sweep(
+        &self,
+        id: &JobId,
+        now_ms: u64,
+        message: &str,
+    ) -> Result<Option<SweepSummary>, StoreError> {
+        self.inner.cancel_sweep(id, now_ms, message).await
     }
 }
 

@@ -14,7 +14,7 @@ use bytes::Bytes;
 use drape::jobs::{
     AssetRecord, AssetRoom, CancelRequest, Claim, Claimed, Failure, Idempotency, Inserted, JobId, JobRecord,
     JobStatus, JobStore, Jobs, JobsConfig, Lease, MemoryStore, Outcome, Page, Plan, PostgresStore, PutAsset,
-    Renewed, SqliteStore, StoredResult, Submission,
+    Renewed, RunEnd, SqliteStore, StoredResult, Submission, SweepEntry,
 };
 use drape::scene::Scene;
 use serde_json::json;
@@ -463,6 +463,135 @@ async fn assets_never_pass_their_room(store: Arc<dyn JobStore>) {
     assert_eq!(store.put_asset(&asset(2, 41), b"2", room).await.unwrap(), PutAsset::Added);
 }
 
+fn sweep_entry(runs: u32, has_reference: bool) -> SweepEntry {
+    SweepEntry { id: JobId::new(), created_ms: T0, runs, has_reference }
+}
+
+/// The indices and attempts of the runs `owner` claims at `now`, and their sweep.
+async fn claim_runs(
+    store: &dyn JobStore,
+    owner: &str,
+    now: u64,
+    max: u32,
+) -> Option<(JobId, Vec<(u32, u32)>)> {
+    let claimed = store.claim_sweep_runs(&lease(owner, now), now, max).await.unwrap()?;
+    Some((claimed.sweep, claimed.runs.iter().map(|r| (r.index, r.attempts)).collect()))
+}
+
+fn run_end(index: u32, result: &[u8]) -> RunEnd {
+    RunEnd {
+        index,
+        status: JobStatus::Succeeded,
+        message: None,
+        result: Some(Bytes::copy_from_slice(result)),
+    }
+}
+
+async fn sweeps_are_stored_with_a_row_per_run_and_listed_newest_first(store: Arc<dyn JobStore>) {
+    let (old, new) = (sweep_entry(3, true), sweep_entry(2000, false));
+    store.insert_sweep(&old, r#"{"tag": "old"}"#).await.unwrap();
+    store.insert_sweep(&new, r#"{"tag": "new"}"#).await.unwrap();
+    let summary = store.sweep(&old.id).await.unwrap().unwrap();
+    assert_eq!(
+        (summary.entry, summary.finished, summary.running, summary.cancel_requested),
+        (old.clone(), 0, 0, false)
+    );
+    assert_eq!(store.sweep_document(&new.id).await.unwrap().unwrap(), r#"{"tag": "new"}"#);
+    let runs = store.sweep_runs(&new.id).await.unwrap();
+    assert_eq!(runs.len(), 2000);
+    assert!(runs.iter().all(|r| r.status == JobStatus::Queued && r.result.is_none()));
+    let listed: Vec<JobId> = store
+        .list_sweeps(Page { offset: 0, limit: 10 })
+        .await
+        .unwrap()
+        .into_iter()
+        .map(|s| s.entry.id)
+        .collect();
+    assert_eq!(listed, [new.id.clone(), old.id.clone()]);
+    let second: Vec<JobId> = store
+        .list_sweeps(Page { offset: 1, limit: 10 })
+        .await
+        .unwrap()
+        .into_iter()
+        .map(|s| s.entry.id)
+        .collect();
+    assert_eq!(second, [old.id]);
+    let unknown = JobId::new();
+    assert!(store.sweep(&unknown).await.unwrap().is_none());
+    assert!(store.sweep_runs(&unknown).await.unwrap().is_empty());
+    assert!(store.cancel_sweep(&unknown, T0, "cancelled").await.unwrap().is_none());
+}
+
+async fn sweep_runs_are_claimed_in_batches_of_the_oldest_sweep_under_a_lease(store: Arc<dyn JobStore>) {
+    let (first, second) = (sweep_entry(3, true), sweep_entry(2, false));
+    store.insert_sweep(&first, "{}").await.unwrap();
+    store.insert_sweep(&second, "{}").await.unwrap();
+    assert_eq!(claim_runs(&*store, "a", T0, 2).await, Some((first.id.clone(), vec![(0, 1), (1, 1)])));
+    assert_eq!(claim_runs(&*store, "b", T0, 2).await, Some((first.id.clone(), vec![(2, 1)])));
+    assert_eq!(store.sweep(&first.id).await.unwrap().unwrap().running, 3);
+
+    // The end of a run is stored by its holder only, with its result.
+    assert!(!store.finish_sweep_run(&first.id, "b", run_end(0, b"not b's")).await.unwrap());
+    assert!(store.finish_sweep_run(&first.id, "a", run_end(0, b"{\"final\": 1}")).await.unwrap());
+    let runs = store.sweep_runs(&first.id).await.unwrap();
+    assert_eq!(
+        (runs[0].status, runs[0].result.as_deref()),
+        (JobStatus::Succeeded, Some(&b"{\"final\": 1}"[..]))
+    );
+    assert_eq!((runs[1].status, runs[2].status), (JobStatus::Running, JobStatus::Running));
+    let summary = store.sweep(&first.id).await.unwrap().unwrap();
+    assert_eq!((summary.finished, summary.running), (1, 2));
+
+    // Renewals keep the runs an owner holds; a released run waits again with its attempt back.
+    let held = store.renew_sweep_runs(&lease("a", T0 + 10)).await.unwrap();
+    assert_eq!(held.iter().map(|h| (h.sweep.clone(), h.index)).collect::<Vec<_>>(), [(first.id.clone(), 1)]);
+    store.release_sweep_runs(&first.id, "b", &[2]).await.unwrap();
+    assert_eq!(claim_runs(&*store, "c", T0 + 20, 5).await, Some((first.id.clone(), vec![(2, 1)])));
+    // `b` released nothing it did not hold; run 1's lease (renewed at T0 + 10) lapses later.
+    assert_eq!(claim_runs(&*store, "c", T0 + 20, 5).await, Some((second.id.clone(), vec![(0, 1), (1, 1)])));
+    assert_eq!(claim_runs(&*store, "c", T0 + 20, 5).await, None);
+    assert_eq!(claim_runs(&*store, "d", T0 + 11 + LEASE_MS, 5).await, Some((first.id.clone(), vec![(1, 2)])));
+    assert!(!store.finish_sweep_run(&first.id, "a", run_end(1, b"late")).await.unwrap(), "a's lease lapsed");
+}
+
+async fn cancelling_a_sweep_ends_its_waiting_runs_and_flags_its_running_ones(store: Arc<dyn JobStore>) {
+    let sweep = sweep_entry(4, false);
+    store.insert_sweep(&sweep, "{}").await.unwrap();
+    assert_eq!(claim_runs(&*store, "a", T0 + 10, 1).await, Some((sweep.id.clone(), vec![(0, 1)])));
+    assert_eq!(claim_runs(&*store, "b", T0, 1).await, Some((sweep.id.clone(), vec![(1, 1)])));
+    // b's lease (from T0) lapses, a's (from T0 + 10) does not: b's run is cancelled at once, like the waiting ones; a's is flagged.
+    let summary =
+        store.cancel_sweep(&sweep.id, T0 + LEASE_MS + 1, "cancelled by request").await.unwrap().unwrap();
+    assert!(summary.cancel_requested);
+    let statuses: Vec<JobStatus> =
+        store.sweep_runs(&sweep.id).await.unwrap().iter().map(|r| r.status).collect();
+    assert_eq!(
+        statuses,
+        [JobStatus::Running, JobStatus::Cancelled, JobStatus::Cancelled, JobStatus::Cancelled]
+    );
+    let runs = store.sweep_runs(&sweep.id).await.unwrap();
+    assert_eq!(runs[2].message.as_deref(), Some("cancelled by request"));
+    let held = store.renew_sweep_runs(&lease("a", T0 + 12)).await.unwrap();
+    assert_eq!((held.len(), held[0].cancel_requested), (1, true));
+    // If a dies, whoever claims the run learns it is to be ended, not run.
+    let claimed = store
+        .claim_sweep_runs(&lease("c", T0 + 13 + LEASE_MS), T0 + 13 + LEASE_MS, 5)
+        .await
+        .unwrap()
+        .unwrap();
+    assert_eq!((claimed.runs[0].index, claimed.runs[0].cancel_requested), (0, true));
+    let ended = RunEnd {
+        index: 0,
+        status: JobStatus::Cancelled,
+        message: Some("cancelled by request".into()),
+        result: None,
+    };
+    assert!(store.finish_sweep_run(&sweep.id, "c", ended).await.unwrap());
+    let summary = store.sweep(&sweep.id).await.unwrap().unwrap();
+    assert!(summary.is_complete());
+    assert_eq!(claim_runs(&*store, "c", T0 + 14 + LEASE_MS, 5).await, None);
+}
+
 /// A module named for the backend with one test per suite function, each carrying the
 /// attributes in brackets (for PostgreSQL, an `ignore` with what it needs).
 macro_rules! suite {
@@ -504,6 +633,9 @@ every_backend!(
     a_queued_job_wakes_an_idle_worker,
     assets_are_stored_once_listed_newest_first_and_deleted,
     assets_never_pass_their_room,
+    sweeps_are_stored_with_a_row_per_run_and_listed_newest_first,
+    sweep_runs_are_claimed_in_batches_of_the_oldest_sweep_under_a_lease,
+    cancelling_a_sweep_ends_its_waiting_runs_and_flags_its_running_ones,
 );
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

@@ -79,9 +79,8 @@ async fn a_sweep_runs_to_a_table_csv_and_plot() {
     let id = submitted["id"].as_str().unwrap().to_string();
     assert_eq!(answer.header("location"), Some(format!("/sweeps/{id}").as_str()));
     assert_eq!(submitted["variants"], 6);
-    assert_eq!(submitted["jobs"]["variants"].as_array().unwrap().len(), 6);
-    assert!(submitted["jobs"]["reference"].is_string());
     assert_eq!(submitted["progress"]["runs"], 7);
+    assert_eq!(submitted["rows"].as_array().unwrap().len(), 6);
 
     let sweep = until_complete(&app, &id).await;
     assert_eq!(sweep["progress"]["finished"], 7);
@@ -187,7 +186,7 @@ async fn an_unknown_sweep_is_not_found() {
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn deleting_a_sweep_cancels_every_job() {
+async fn deleting_a_sweep_cancels_every_run() {
     let (_, app) = test_app(config(1, 8), ApiConfig::default());
     // Long runs: one runs, the rest wait, until cancelled.
     let long = json!({
@@ -197,12 +196,6 @@ async fn deleting_a_sweep_cancels_every_job() {
     let answer = post_json(&app, "/sweeps", &long.to_string()).await;
     assert_eq!(answer.status, 202, "{}", answer.text());
     let id = answer.json()["id"].as_str().unwrap().to_string();
-    let job_ids: Vec<String> = answer.json()["jobs"]["variants"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|j| j.as_str().unwrap().into())
-        .collect();
 
     let cancelled = delete(&app, &format!("/sweeps/{id}")).await;
     assert_eq!(cancelled.status, 202, "{}", cancelled.text());
@@ -211,31 +204,81 @@ async fn deleting_a_sweep_cancels_every_job() {
     for row in sweep["rows"].as_array().unwrap() {
         assert_eq!(row["status"], "cancelled", "{row}");
     }
-    for job in job_ids {
-        assert_eq!(get(&app, &format!("/jobs/{job}")).await.json()["status"], "cancelled");
+    assert_eq!(sweep["cancel_requested"], true);
+}
+
+/// A sweep of `values` × 2 integrators of a 7-particle chain, tiny runs.
+fn tiny_chains(values: usize) -> String {
+    let dts: Vec<f64> = (0..values).map(|n| 0.001 + 0.000_001 * n as f64).collect();
+    json!({
+        "scene": {"duration": 0.1, "bodies": [{"type": "chain", "count": 7, "pin": [0]}], "error_estimate": "none"},
+        "vary": {"/integrator": ["symplectic_euler", "verlet"], "/dt": dts},
+    })
+    .to_string()
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_sweep_of_a_thousand_variants_is_one_entry_within_the_default_queue() {
+    let (_, app) = test_app(JobsConfig { workers: 2, ..JobsConfig::default() }, ApiConfig::default());
+    assert_eq!(JobsConfig::default().queue_capacity, 64);
+    let answer = post_json(&app, "/sweeps", &tiny_chains(500)).await;
+    assert_eq!(answer.status, 202, "{}", answer.text());
+    let id = answer.json()["id"].as_str().unwrap().to_string();
+    assert_eq!(answer.json()["progress"]["runs"], 1000);
+    assert!(job_statuses(&app).await.is_empty(), "the sweep's runs are not jobs");
+
+    let listed = get(&app, "/sweeps").await.json();
+    assert_eq!(listed["sweeps"][0]["id"], id.as_str());
+    assert_eq!(listed["sweeps"][0]["variants"], 1000);
+
+    let sweep = until_complete(&app, &id).await;
+    assert_eq!(sweep["progress"]["finished"], 1000);
+    let rows = sweep["rows"].as_array().unwrap();
+    assert_eq!(rows.len(), 1000);
+    for row in rows {
+        assert_eq!(row["status"], "succeeded", "{row}");
+        assert_eq!(row["steps"].as_f64(), Some((0.1 / row["dt"].as_f64().unwrap()).round()), "{row}");
     }
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn a_queue_full_part_way_cancels_what_the_sweep_queued() {
-    let (_, app) = test_app(config(1, 3), ApiConfig::default());
-    // One long job runs and one waits, leaving one place in a queue of three.
-    let running = post_json(&app, "/jobs", LONG).await.json();
-    poll_until(&app, running["id"].as_str().unwrap(), |j| j["status"] == "running").await;
-    let waiting = post_json(&app, "/jobs", LONG).await.json();
-    let sweep = json!({"scene": single_spring(), "vary": {"/dt": [0.01, 0.02]}, "reference": {"dt": 0.001}});
-    let answer = post_json(&app, "/sweeps", &sweep.to_string()).await;
-    assert_eq!(answer.status, 429, "{}", answer.text());
-    assert_eq!(answer.header("retry-after"), Some("1"));
+async fn single_jobs_are_served_while_a_big_sweep_runs() {
+    let (_, app) = test_app(config(1, 16), ApiConfig::default());
+    // 80 runs of a 2,000-particle chain, each tens of milliseconds: seconds of work for one worker.
+    let dts: Vec<f64> = (0..80).map(|n| 0.001 + 0.00001 * f64::from(n)).collect();
+    let big = json!({
+        "scene": {"duration": 0.5, "bodies": [{"type": "chain", "count": 2000, "mass": 200, "spring": {"k": 1000}}]},
+        "vary": {"/dt": dts},
+    });
+    let answer = post_json(&app, "/sweeps", &big.to_string()).await;
+    assert_eq!(answer.status, 202, "{}", answer.text());
+    let id = answer.json()["id"].as_str().unwrap().to_string();
+    tokio::time::timeout(Duration::from_secs(60), async {
+        while get(&app, &format!("/sweeps/{id}")).await.json()["progress"]["finished"] == 0 {
+            tokio::time::sleep(Duration::from_millis(10)).await;
+        }
+    })
+    .await
+    .expect("the sweep starts");
 
-    let statuses = job_statuses(&app).await;
-    let sweep_jobs: Vec<&(String, String)> =
-        statuses.iter().filter(|(id, _)| *id != running["id"] && *id != waiting["id"]).collect();
-    assert!(!sweep_jobs.is_empty(), "the sweep queued something before the queue filled");
-    for (id, status) in sweep_jobs {
-        assert_eq!(status, "cancelled", "job {id}");
-    }
-    for id in [&running["id"], &waiting["id"]] {
-        delete(&app, &format!("/jobs/{}", id.as_str().unwrap())).await;
-    }
+    // A job queued now is taken at the end of the worker's current batch, long before the sweep ends.
+    let tiny = json!({"duration": 0.1, "dt": 0.01, "bodies": [{"type": "chain", "count": 3}]});
+    let job = post_json(&app, "/jobs", &tiny.to_string()).await.json();
+    let ended = poll_until(&app, job["id"].as_str().unwrap(), |j| j["status"] == "succeeded").await;
+    assert_eq!(ended["status"], "succeeded");
+    let sweep = get(&app, &format!("/sweeps/{id}")).await.json();
+    let finished = sweep["progress"]["finished"].as_u64().unwrap();
+    assert!(finished < 40, "the job waited for half the sweep: {finished} of 80 runs had ended");
+
+    // Cancelled, the sweep ends; its events say so at once.
+    assert_eq!(delete(&app, &format!("/sweeps/{id}")).await.status, 202);
+    let cancelled = until_complete(&app, &id).await;
+    let statuses: Vec<&str> =
+        cancelled["rows"].as_array().unwrap().iter().map(|r| r["status"].as_str().unwrap()).collect();
+    assert!(statuses.iter().all(|s| matches!(*s, "succeeded" | "cancelled")), "{statuses:?}");
+    assert!(statuses.contains(&"cancelled"), "{statuses:?}");
+    let events = get(&app, &format!("/sweeps/{id}/events")).await;
+    assert_eq!(events.status, 200);
+    let end = events.text().strip_prefix("event: end\ndata: ").expect("one end event").trim().to_string();
+    assert_eq!(serde_json::from_str::<Value>(&end).unwrap()["complete"], true);
 }

@@ -16,6 +16,7 @@ mod metrics;
 mod openapi;
 mod problem;
 mod simulate;
+mod sweep_events;
 mod sweeps;
 mod viewer;
 mod views;
@@ -35,7 +36,7 @@ pub use openapi::{OPENAPI_YAML, spec as openapi_spec};
 pub use problem::{AppError, PROBLEM_JSON};
 pub use viewer::viewer_files;
 
-use crate::jobs::{Jobs, Sweeps};
+use crate::jobs::Jobs;
 
 /// Settings of the HTTP side.
 #[derive(Clone, Debug)]
@@ -72,7 +73,7 @@ impl Default for ApiConfig {
             request_timeout: Duration::from_secs(330),
             max_concurrent_requests: 1024,
             cors_origins: vec!["*".into()],
-            max_sweep_variants: 1000,
+            max_sweep_variants: 10_000,
             auth_tokens: Vec::new(),
             allowed_hosts: AllowedHosts::Any,
             header_read_timeout: Duration::from_secs(10),
@@ -86,8 +87,6 @@ impl Default for ApiConfig {
 pub struct AppState {
     /// The job system.
     pub jobs: Jobs,
-    /// The sweeps submitted, each a set of jobs.
-    pub sweeps: Arc<Sweeps>,
     /// HTTP settings.
     pub config: Arc<ApiConfig>,
     /// Request counts and latencies.
@@ -97,7 +96,7 @@ pub struct AppState {
 impl AppState {
     /// State over a running job system.
     pub fn new(jobs: Jobs, config: ApiConfig) -> Self {
-        Self { jobs, sweeps: Arc::default(), config: Arc::new(config), http_metrics: Arc::default() }
+        Self { jobs, config: Arc::new(config), http_metrics: Arc::default() }
     }
 }
 
@@ -130,7 +129,9 @@ pub fn routes() -> Vec<Route> {
         route(Method::GET, "/jobs/{id}/result", jobs::result),
         route(Method::GET, "/jobs/{id}/events", events::events),
         route(Method::POST, "/sweeps", sweeps::submit),
+        route(Method::GET, "/sweeps", sweeps::list),
         route(Method::GET, "/sweeps/{id}", sweeps::get),
+        route(Method::GET, "/sweeps/{id}/events", sweep_events::events),
         route(Method::DELETE, "/sweeps/{id}", sweeps::cancel),
         route(Method::GET, "/sweeps/{id}/plot.svg", sweeps::plot),
         route(Method::POST, "/assets", assets::upload),

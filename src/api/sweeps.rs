@@ -1,4 +1,5 @@
-//! The `/sweeps` endpoints: submit a sweep as jobs, read its table (JSON or CSV) and plot, cancel it.
+//! The `/sweeps` endpoints: submit a sweep, list the sweeps, read a sweep's table (JSON or CSV)
+//! and plot, cancel it. Any instance on the same store answers for any sweep.
 
 use axum::Json;
 use axum::extract::{RawQuery, State};
@@ -7,15 +8,17 @@ use axum::response::{IntoResponse, Response};
 use serde_json::{Value, json};
 
 use super::AppState;
-use super::extract::{JsonBody, SweepPath};
+use super::extract::{JsonBody, PageQuery, SweepPath};
 use super::problem::AppError;
 use super::views::rfc3339;
 use crate::assets::has_references;
-use crate::jobs::{SweepRecord, SweepState};
+use crate::jobs::{JobId, Page, SweepState, SweepSummary};
 use crate::scene::FieldError;
 
-/// `POST /sweeps`: puts the meshes its base scene names by `"asset"` in place, checks the sweep (pointers, values, variant count, every run's limits) and
-/// queues its reference and every variant as jobs; `202` with the sweep and its `Location`.
+/// `POST /sweeps`: puts the meshes its base scene names by `"asset"` in place, checks the sweep
+/// (pointers, values, variant count, every run's limits) and stores it, one entry whatever its
+/// size, with its reference and every variant waiting to run; `202` with the sweep and its
+/// `Location`.
 pub async fn submit(
     State(state): State<AppState>,
     JsonBody(mut document): JsonBody,
@@ -24,12 +27,23 @@ pub async fn submit(
     if let Some(scene) = document.get_mut("scene").filter(|scene| has_references(scene)) {
         state.jobs.resolve_assets(scene, "/scene").await?;
     }
-    let record = state.sweeps.submit(&state.jobs, document, state.config.max_sweep_variants).await?;
-    let sweep = state.sweeps.state(&state.jobs, &record).await?;
-    let mut response = (StatusCode::ACCEPTED, Json(sweep_view(&record, &sweep))).into_response();
-    let location = HeaderValue::from_str(&format!("/sweeps/{}", record.id)).expect("sweep ids are URL-safe");
+    let summary = state.jobs.submit_sweep(document, state.config.max_sweep_variants).await?;
+    let sweep = state.jobs.sweep_state(summary).await?;
+    let id = sweep.summary.entry.id.clone();
+    let mut response = (StatusCode::ACCEPTED, Json(sweep_view(&sweep))).into_response();
+    let location = HeaderValue::from_str(&format!("/sweeps/{id}")).expect("sweep ids are URL-safe");
     response.headers_mut().insert(header::LOCATION, location);
     Ok(response)
+}
+
+/// `GET /sweeps`: the sweeps, newest first, `offset` and `limit` paged, each with its progress.
+pub async fn list(State(state): State<AppState>, page: PageQuery) -> Result<Response, AppError> {
+    let sweeps = state.jobs.list_sweeps(Page { offset: page.offset, limit: page.limit }).await?;
+    let next = (sweeps.len() as u64 == page.limit)
+        .then(|| format!("/sweeps?offset={}&limit={}", page.offset + page.limit, page.limit));
+    let views: Vec<_> = sweeps.iter().map(summary_view).collect();
+    Ok(Json(json!({"sweeps": views, "offset": page.offset, "limit": page.limit, "next": next}))
+        .into_response())
 }
 
 /// `GET /sweeps/{id}`: the table as it stands, as JSON, or as CSV with `?format=csv` or
@@ -41,50 +55,67 @@ pub async fn get(
     headers: HeaderMap,
 ) -> Result<Response, AppError> {
     let csv = wants_csv(query.as_deref(), &headers)?;
-    let record = state.sweeps.get(&id).ok_or_else(|| AppError::SweepNotFound { id: id.to_string() })?;
-    let sweep = state.sweeps.state(&state.jobs, &record).await?;
+    let sweep = state_of(&state, &id).await?;
     if csv {
         let bytes = sweep.csv().map_err(|e| AppError::Internal(format!("CSV: {e}")))?;
         return Ok(([(header::CONTENT_TYPE, "text/csv; charset=utf-8")], bytes).into_response());
     }
-    Ok(Json(sweep_view(&record, &sweep)).into_response())
+    Ok(Json(sweep_view(&sweep)).into_response())
 }
 
 /// `GET /sweeps/{id}/plot.svg`: error against wall time, log-log, one series per integrator.
 pub async fn plot(State(state): State<AppState>, SweepPath(id): SweepPath) -> Result<Response, AppError> {
-    let record = state.sweeps.get(&id).ok_or_else(|| AppError::SweepNotFound { id: id.to_string() })?;
-    let sweep = state.sweeps.state(&state.jobs, &record).await?;
+    let sweep = state_of(&state, &id).await?;
     let bytes = sweep.svg(&format!("sweep {id}")).map_err(|e| AppError::Internal(format!("SVG: {e}")))?;
     Ok(([(header::CONTENT_TYPE, "image/svg+xml")], bytes).into_response())
 }
 
-/// `DELETE /sweeps/{id}`: cancels every job of the sweep not yet ended; `202` with the sweep.
+/// `DELETE /sweeps/{id}`: cancels the sweep: runs not started end at once, running ones stop;
+/// `202` with the sweep.
 pub async fn cancel(State(state): State<AppState>, SweepPath(id): SweepPath) -> Result<Response, AppError> {
-    let record = state.sweeps.get(&id).ok_or_else(|| AppError::SweepNotFound { id: id.to_string() })?;
-    state.sweeps.cancel(&state.jobs, &record).await?;
-    let sweep = state.sweeps.state(&state.jobs, &record).await?;
-    Ok((StatusCode::ACCEPTED, Json(sweep_view(&record, &sweep))).into_response())
+    let summary =
+        state.jobs.cancel_sweep(&id).await?.ok_or_else(|| AppError::SweepNotFound { id: id.to_string() })?;
+    let sweep = state.jobs.sweep_state(summary).await?;
+    Ok((StatusCode::ACCEPTED, Json(sweep_view(&sweep))).into_response())
 }
 
-/// A sweep as the API shows it: the table, with its id, jobs and progress.
-fn sweep_view(record: &SweepRecord, sweep: &SweepState) -> Value {
-    let id = &record.id;
+/// The sweep with this id and its table as they stand.
+pub(super) async fn state_of(state: &AppState, id: &JobId) -> Result<SweepState, AppError> {
+    let summary =
+        state.jobs.sweep(id).await?.ok_or_else(|| AppError::SweepNotFound { id: id.to_string() })?;
+    Ok(state.jobs.sweep_state(summary).await?)
+}
+
+/// A sweep as the API shows it: the table, with what [`summary_view`] shows.
+pub(super) fn sweep_view(sweep: &SweepState) -> Value {
     let mut view = sweep.table.to_json();
-    view["id"] = id.as_str().into();
-    view["created_at"] = rfc3339(record.created_ms).into();
-    view["variants"] = record.variant_jobs.len().into();
+    let Value::Object(summary) = summary_view(&sweep.summary) else { unreachable!("a summary is an object") };
+    view.as_object_mut().expect("a table is an object").extend(summary);
+    view["variants"] = sweep.variants.into();
+    // The rows were read after the summary's counts: what they say is the more recent.
     view["complete"] = sweep.table.is_complete().into();
-    view["progress"] = json!({"finished": sweep.finished, "runs": sweep.runs});
-    view["jobs"] = json!({
-        "reference": record.reference_job.as_ref().map(|j| j.as_str()),
-        "variants": record.variant_jobs.iter().map(|j| j.as_str()).collect::<Vec<_>>(),
-    });
-    view["links"] = json!({
-        "self": format!("/sweeps/{id}"),
-        "csv": format!("/sweeps/{id}?format=csv"),
-        "plot": format!("/sweeps/{id}/plot.svg"),
-    });
+    view["progress"]["finished"] = sweep.finished.into();
     view
+}
+
+/// A sweep without its table: id, progress, and links.
+pub(super) fn summary_view(summary: &SweepSummary) -> Value {
+    let entry = &summary.entry;
+    let id = &entry.id;
+    json!({
+        "id": id.as_str(),
+        "created_at": rfc3339(entry.created_ms),
+        "variants": entry.runs - u32::from(entry.has_reference),
+        "complete": summary.is_complete(),
+        "cancel_requested": summary.cancel_requested,
+        "progress": {"finished": summary.finished, "running": summary.running, "runs": entry.runs},
+        "links": {
+            "self": format!("/sweeps/{id}"),
+            "csv": format!("/sweeps/{id}?format=csv"),
+            "plot": format!("/sweeps/{id}/plot.svg"),
+            "events": format!("/sweeps/{id}/events"),
+        },
+    })
 }
 
 /// Whether the table is wanted as CSV: `?format=csv`, or `Accept: text/csv` without `?format=`.

@@ -10,7 +10,8 @@
 //! time. The stores live in [`store`]: [`MemoryStore`], [`SqliteStore`] (the default) and
 //! [`PostgresStore`] (several instances, one queue); [`StoreUrl`] picks one. The HTTP API talks
 //! to this module, never to the solver.
-//! [`Sweeps`] queues every run of a sweep as a job and assembles its table from their results.
+//! [`Jobs::submit_sweep`] stores a sweep as one entry with a row per run; workers run its runs
+//! in batches when no job is queued, and its table is assembled from the runs' stored outcomes.
 //! [`Jobs::upload_asset`] keeps uploaded meshes in the store, and [`Jobs::resolve_assets`] puts
 //! them in place of a scene's `"asset"` references at admission.
 //! [`check_untrusted`] takes a scene's bytes through all of admission and compilation at once.
@@ -31,6 +32,8 @@ mod service;
 mod shared;
 mod status;
 pub mod store;
+mod sweep_live;
+mod sweep_work;
 mod sweeps;
 mod untrusted;
 
@@ -46,11 +49,9 @@ pub use record::{Idempotency, JobRecord, Plan, now_ms};
 pub use service::{Cancelled, Ended, Jobs, Submission, SubmitError, Submitted};
 pub use status::{Failure, JobStatus};
 pub use store::{
-    AssetRecord, AssetRoom, CancelRequest, Claim, Claimed, Inserted, JobStore, Lease, MemoryStore, Outcome,
-    Page, PostgresStore, PutAsset, Renewed, SqliteStore, StoreError, StoreUrl, StoredResult,
-    attempts_exhausted,
+    AssetRecord, AssetRoom, CancelRequest, Claim, Claimed, ClaimedRun, ClaimedRuns, HeldRun, Inserted,
+    JobStore, Lease, MemoryStore, Outcome, Page, PostgresStore, PutAsset, Renewed, RunEnd, SqliteStore,
+    StoreError, StoreUrl, StoredResult, StoredRun, SweepEntry, SweepSummary, attempts_exhausted,
 };
-pub use sweeps::{
-    SweepDocumentError, SweepRecord, SweepState, SweepSubmitError, Sweeps, admit_for_table, sweep_over_limit,
-};
+pub use sweeps::{SweepDocumentError, SweepState, SweepSubmitError, admit_for_table, sweep_over_limit};
 pub use untrusted::{Refusal, check_untrusted};

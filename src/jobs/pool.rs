@@ -12,7 +12,9 @@
 //! loop never touches the store. The watchdog thread wakes many times a second: it cancels,
 //! through their `Control`, jobs past their wall time (the worker then marks them failed), and
 //! every [`RENEW_PERIOD`] renews the leases of running jobs, copies their progress to the store
-//! and stops those cancelled through another instance or no longer this instance's.
+//! and stops those cancelled through another instance or no longer this instance's; it does the
+//! same for the batches of sweep runs ([`sweep_work`](super::sweep_work)), which a worker takes
+//! when no job is queued.
 
 use std::any::Any;
 use std::panic::{AssertUnwindSafe, catch_unwind};
@@ -28,6 +30,8 @@ use super::record::now_ms;
 use super::shared::Shared;
 use super::status::{Failure, JobStatus};
 use super::store::{Claim, Claimed, Outcome, Renewed, StoredResult};
+use super::sweep_live::Batch;
+use super::sweep_work::run_sweep_batch;
 use crate::output::stats_json;
 use crate::run::{Status, execute};
 use crate::scene::{Compiled, Scene};
@@ -57,6 +61,7 @@ pub(super) fn spawn_workers(shared: &Arc<Shared>, count: usize) -> Vec<JoinHandl
 /// A worker's loop: claim, run, record, until the job system stops.
 fn work(shared: &Shared) {
     let mut backoff = shared.config.idle_poll;
+    let mut batch_size = 1;
     while !shared.stopped.load(Ordering::Relaxed) {
         let lease = shared.lease();
         match shared.runtime.block_on(shared.store.claim(&lease, now_ms(), shared.config.max_attempts)) {
@@ -78,10 +83,22 @@ fn work(shared: &Shared) {
                 );
                 shared.changed();
             }
-            Ok(None) => {
-                backoff = shared.config.idle_poll;
-                shared.doorbell.wait(shared.config.idle_poll);
-            }
+            // No job is queued: a batch of a sweep's runs, then the queue again.
+            Ok(None) => match run_sweep_batch(shared, batch_size) {
+                Ok(Some(next_size)) => {
+                    backoff = shared.config.idle_poll;
+                    batch_size = next_size;
+                }
+                Ok(None) => {
+                    backoff = shared.config.idle_poll;
+                    shared.doorbell.wait(shared.config.idle_poll);
+                }
+                Err(e) => {
+                    tracing::error!(error = %e, retry_in_s = backoff.as_secs_f64(), "cannot claim sweep runs; starting none until a claim is stored");
+                    sleep_unless_stopped(shared, backoff);
+                    backoff = (backoff * 2).min(MOST_BACKOFF);
+                }
+            },
             Err(e) => {
                 tracing::error!(error = %e, retry_in_s = backoff.as_secs_f64(), "cannot claim a job; starting none until a claim is stored");
                 sleep_unless_stopped(shared, backoff);
@@ -272,6 +289,8 @@ pub(super) fn spawn_watchdog(shared: &Arc<Shared>) -> JoinHandle<()> {
                         live.control.cancel();
                     }
                 }
+                let batches = shared.batches().clone();
+                batches.iter().for_each(|batch| batch.enforce(shared.config.wall_time));
                 if last_renewal.elapsed() >= RENEW_PERIOD {
                     last_renewal = Instant::now();
                     for (id, live) in &running {
@@ -279,10 +298,26 @@ pub(super) fn spawn_watchdog(shared: &Arc<Shared>) -> JoinHandle<()> {
                             renew(&shared, id, live);
                         }
                     }
+                    if !batches.is_empty() {
+                        renew_sweep_runs(&shared, &batches);
+                    }
                 }
             }
         })
         .expect("the operating system can start the watchdog thread")
+}
+
+/// Renews the leases of the sweep runs this instance holds, and stops the batches of sweeps a
+/// client cancelled through any instance.
+fn renew_sweep_runs(shared: &Shared, batches: &[Arc<Batch>]) {
+    match shared.runtime.block_on(shared.store.renew_sweep_runs(&shared.lease())) {
+        Ok(held) => {
+            for run in held.iter().filter(|run| run.cancel_requested) {
+                batches.iter().filter(|b| b.sweep == run.sweep).for_each(|b| b.cancel());
+            }
+        }
+        Err(e) => tracing::warn!(error = %e, "cannot renew the leases of sweep runs"),
+    }
 }
 
 /// Renews a running job's lease with its progress, and stops it if a client cancelled it through

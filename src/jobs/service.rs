@@ -142,6 +142,8 @@ impl Jobs {
             changes: watch::Sender::new(0),
             live: Mutex::new(HashMap::new()),
             threads: Mutex::new(Vec::new()),
+            batches: Mutex::new(Vec::new()),
+            sweeps: Mutex::new(Vec::new()),
         });
         let mut threads = spawn_workers(&shared, workers);
         threads.push(spawn_watchdog(&shared));
@@ -421,9 +423,12 @@ impl Jobs {
             shared.changed();
         }
         let deadline = Instant::now() + grace;
-        while shared.running.load(Ordering::Relaxed) > 0 && Instant::now() < deadline {
+        let busy = || shared.running.load(Ordering::Relaxed) > 0 || !shared.batches().is_empty();
+        while busy() && Instant::now() < deadline {
             tokio::time::sleep(Duration::from_millis(10)).await;
         }
+        // A batch stops its run and puts its runs back in the queue.
+        shared.batches().iter().for_each(|batch| batch.shut_down());
         for (id, live) in shared.live_jobs() {
             live.shutting_down.store(true, Ordering::Relaxed);
             if durable {

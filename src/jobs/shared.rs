@@ -1,7 +1,9 @@
 //! [`Shared`]: the state the service ([`Jobs`](super::Jobs)) and its worker and watchdog threads
 //! hold together: the store, the configuration, the runtime the workers reach the store through,
 //! the counters, and the jobs running here with their [`Live`] entries. It records a job's start
-//! and end here; neither the service nor the pool is imported, so both can build on it.
+//! and end here; neither the service nor the pool is imported, so both can build on it. It also
+//! holds the batches of sweep runs running here ([`Batch`]) and the sweeps they come from, each
+//! read from the store and checked once per process.
 
 use std::collections::HashMap;
 use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
@@ -16,7 +18,10 @@ use super::id::JobId;
 use super::jobs_config::JobsConfig;
 use super::live::Live;
 use super::record::now_ms;
-use super::store::{JobStore, Lease, Outcome};
+use super::store::{JobStore, Lease, Outcome, StoreError};
+use super::sweep_live::Batch;
+use crate::scene::{Field, FrameSelection, Scene};
+use crate::sweep::{Sweep, SweepError};
 
 /// The job system's state, shared by [`Jobs`](super::Jobs) and its threads.
 pub(super) struct Shared {
@@ -42,7 +47,14 @@ pub(super) struct Shared {
     pub(super) changes: watch::Sender<u64>,
     pub(super) live: Mutex<HashMap<JobId, Arc<Live>>>,
     pub(super) threads: Mutex<Vec<JoinHandle<()>>>,
+    /// Batches of sweep runs running here.
+    pub(super) batches: Mutex<Vec<Arc<Batch>>>,
+    /// The most recently used sweeps, as run for their table.
+    pub(super) sweeps: Mutex<Vec<(JobId, Arc<Sweep>)>>,
 }
+
+/// Sweeps kept checked in [`Shared::sweeps`].
+const SWEEPS_KEPT: usize = 8;
 
 impl Shared {
     /// The jobs running here.
@@ -52,6 +64,36 @@ impl Shared {
 
     pub(super) fn live_jobs(&self) -> Vec<(JobId, Arc<Live>)> {
         self.live().iter().map(|(id, live)| (id.clone(), Arc::clone(live))).collect()
+    }
+
+    /// The batches of sweep runs running here.
+    pub(super) fn batches(&self) -> MutexGuard<'_, Vec<Arc<Batch>>> {
+        self.batches.lock().unwrap_or_else(PoisonError::into_inner)
+    }
+
+    /// The sweep with this id as its runs are run for its table, read from the store and checked
+    /// the first time; `None` if the store has no such sweep. Call it off the async runtime: it
+    /// blocks on the store and checks every variant.
+    pub(super) fn sweep_blocking(&self, id: &JobId) -> Result<Option<Arc<Sweep>>, StoreError> {
+        let kept = |s: &Self| {
+            let sweeps = s.sweeps.lock().unwrap_or_else(PoisonError::into_inner);
+            sweeps.iter().find(|(kept, _)| kept == id).map(|(_, sweep)| Arc::clone(sweep))
+        };
+        if let Some(sweep) = kept(self) {
+            return Ok(Some(sweep));
+        }
+        let Some(document) = self.runtime.block_on(self.store.sweep_document(id))? else { return Ok(None) };
+        let sweep = serde_json::from_str(&document)
+            .map_err(|e| e.to_string())
+            .and_then(|document| sweep_for_table(document, u64::MAX).map_err(|e| e.to_string()))
+            .map_err(|e| StoreError::Backend(format!("the stored sweep {id} cannot be read: {e}")))?;
+        let sweep = Arc::new(sweep);
+        let mut sweeps = self.sweeps.lock().unwrap_or_else(PoisonError::into_inner);
+        if sweeps.len() >= SWEEPS_KEPT {
+            sweeps.remove(0);
+        }
+        sweeps.push((id.clone(), Arc::clone(&sweep)));
+        Ok(Some(sweep))
     }
 
     /// A lease for this instance from now.
@@ -115,4 +157,21 @@ impl Shared {
         self.live().remove(id);
         self.changed();
     }
+}
+
+/// Checks a sweep document and sets every run to keep only its final positions, as JSON: all a
+/// table row needs.
+pub(super) fn sweep_for_table(document: serde_json::Value, max_variants: u64) -> Result<Sweep, SweepError> {
+    let mut sweep = Sweep::from_value(document, max_variants)?;
+    sweep.reference.iter_mut().for_each(keep_final_positions);
+    sweep.variants.iter_mut().for_each(|variant| keep_final_positions(&mut variant.scene));
+    Ok(sweep)
+}
+
+/// A sweep run keeps only its final positions, as JSON, which is all its table row needs and
+/// what [`read_json`](crate::output::read_json) reads back.
+pub(super) fn keep_final_positions(scene: &mut Scene) {
+    scene.output.frames = FrameSelection::Final;
+    scene.output.fields = vec![Field::Positions];
+    scene.output.format = crate::output::Format::Json;
 }

@@ -1,34 +1,31 @@
-//! Sweeps run as jobs: every variant of a [`Sweep`] (and its reference) is one job, and the
-//! registry remembers which jobs make which sweep so their table can be assembled at any time.
+//! Sweeps through the job system: [`Jobs::submit_sweep`] checks a whole [`Sweep`] and stores it
+//! as one entry with a row per run (its reference and every variant); workers of any instance
+//! sharing the store run its runs in batches (see [`sweep_work`](super::sweep_work)), and its
+//! table is assembled from the runs' stored outcomes whenever it is asked for.
 //!
-//! [`Sweeps::submit`] checks the whole sweep before queueing anything: the document
-//! ([`Sweep::from_value`]), then every run against the server's [`Limits`](super::Limits), then
-//! that the runs fit in the queue at all. A run refused by the limits is named by the `vary`
-//! entry that chose the offending value (`/vary/~1dt/3`), or by the base scene's field when no
-//! varied value is to blame. If the queue fills part-way, the runs already queued are cancelled,
-//! so a refused sweep leaves nothing running. The registry is in memory: sweeps are forgotten
-//! on restart, and a run whose job the store has forgotten shows as failed.
-//!
-//! A run's outcome is read from the store once, when its job has ended, and kept with the
-//! sweep: clients poll `GET /sweeps/{id}` while a sweep runs, and each poll reads only the runs
-//! still under way instead of reading back and parsing every result again.
+//! A sweep is checked whole before it is stored: the document ([`Sweep::from_value`]), then every
+//! run against the server's [`Limits`](super::Limits). A run refused by the limits is named by the
+//! `vary` entry that chose the offending value (`/vary/~1dt/3`), or by the base scene's field when
+//! no varied value is to blame. However many runs it makes, a sweep takes no room in the job
+//! queue: its runs wait in their own rows, so a sweep of thousands of variants is accepted by a
+//! server with a small `--queue-capacity`, and stays in the store across restarts.
 
-use std::collections::HashMap;
 use std::io;
-use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
+use std::sync::Arc;
 
-use bytes::Bytes;
 use serde_json::Value;
 use thiserror::Error;
 
 use super::id::JobId;
 use super::limits::Limits;
+use super::live::CANCELLED;
 use super::record::now_ms;
-use super::service::{Jobs, Submission, SubmitError};
+use super::service::{Jobs, SubmitError};
+use super::shared::{keep_final_positions, sweep_for_table};
 use super::status::JobStatus;
-use super::store::StoreError;
-use crate::output::{Format, read_json};
-use crate::scene::{Field, FieldError, FrameSelection, Scene};
+use super::store::{Page, StoreError, StoredRun, SweepEntry, SweepSummary};
+use crate::output::read_json;
+use crate::scene::{FieldError, Scene};
 use crate::sweep::{Outcome, Sweep, SweepError, Table, write_csv, write_svg};
 
 /// Why a sweep document is not a sweep that can run: not JSON, invalid pointers or values, or
@@ -36,45 +33,13 @@ use crate::sweep::{Outcome, Sweep, SweepError, Table, write_csv, write_svg};
 /// it, so that the API need not reach past the job system for it.
 pub use crate::sweep::SweepError as SweepDocumentError;
 
-/// One sweep submitted as jobs.
-#[derive(Debug)]
-pub struct SweepRecord {
-    /// Its id.
-    pub id: JobId,
-    /// The checked sweep: pointers, variant values and scenes.
-    pub sweep: Sweep,
-    /// The reference run's job, if the sweep has a reference.
-    pub reference_job: Option<JobId>,
-    /// One job per variant, in variant order.
-    pub variant_jobs: Vec<JobId>,
-    /// When it was submitted, in milliseconds since the Unix epoch.
-    pub created_ms: u64,
-    /// The outcome of every run, in [`jobs`](Self::jobs) order, as last read from the store.
-    runs: Mutex<Runs>,
-}
-
-/// What is known of a sweep's runs.
-#[derive(Debug)]
-struct Runs {
-    outcomes: Vec<Outcome>,
-    /// Which runs have ended; their outcomes are final and are not read again.
-    ended: Vec<bool>,
-}
-
-impl SweepRecord {
-    /// Every job of the sweep: the reference first, then the variants.
-    pub fn jobs(&self) -> impl Iterator<Item = &JobId> {
-        self.reference_job.iter().chain(&self.variant_jobs)
-    }
-
-    fn runs(&self) -> MutexGuard<'_, Runs> {
-        self.runs.lock().unwrap_or_else(PoisonError::into_inner)
-    }
-}
-
 /// The table of a sweep as it stands, and how many of its runs have ended.
 #[derive(Debug)]
 pub struct SweepState {
+    /// The sweep as stored.
+    pub summary: SweepSummary,
+    /// Variants of the sweep (runs, less the reference).
+    pub variants: usize,
     /// The table, with pending rows for runs not yet ended.
     pub table: Table,
     /// Runs that have ended (reference included).
@@ -106,53 +71,30 @@ pub enum SweepSubmitError {
     /// The document is not a sweep that can run.
     #[error(transparent)]
     Invalid(#[from] SweepError),
-    /// Some runs exceed the server's limits, or there are more runs than the queue holds; each
-    /// problem is at a JSON Pointer into the sweep document.
+    /// Some runs exceed the server's limits; each problem is at a JSON Pointer into the sweep
+    /// document.
     #[error("the sweep exceeds this server's limits")]
     OverLimit(Vec<FieldError>),
-    /// Queueing failed part-way (a full queue, shutdown, the store); what was queued was cancelled.
+    /// The server is shutting down, or the store failed.
     #[error(transparent)]
     Submit(#[from] SubmitError),
-    /// The store failed while cancelling.
+    /// The store failed.
     #[error(transparent)]
     Store(#[from] StoreError),
 }
 
-/// The sweeps of this process, by id.
-#[derive(Debug, Default)]
-pub struct Sweeps {
-    sweeps: Mutex<HashMap<JobId, Arc<SweepRecord>>>,
-}
-
-impl Sweeps {
-    /// Checks a sweep document and queues its reference and every variant as jobs.
-    pub async fn submit(
+impl Jobs {
+    /// Checks a sweep document (at most `max_variants` variants, every run within the limits)
+    /// and stores it with a queued row for its reference and each variant.
+    pub async fn submit_sweep(
         &self,
-        jobs: &Jobs,
         document: Value,
         max_variants: u64,
-    ) -> Result<Arc<SweepRecord>, SweepSubmitError> {
+    ) -> Result<SweepSummary, SweepSubmitError> {
         let vary_lists = vary_lists(&document);
-        let mut sweep = Sweep::from_value(document, max_variants)?;
-        sweep.reference.iter_mut().for_each(keep_final_positions);
-        sweep.reference_document.iter_mut().for_each(keep_final_positions_in_document);
-        for variant in &mut sweep.variants {
-            keep_final_positions(&mut variant.scene);
-            keep_final_positions_in_document(&mut variant.document);
-        }
-
-        let runs = sweep.variants.len() + usize::from(sweep.reference.is_some());
-        let capacity = jobs.config().queue_capacity;
-        if runs > capacity {
-            return Err(SweepSubmitError::OverLimit(vec![FieldError::new(
-                "/vary",
-                format!(
-                    "the sweep makes {runs} runs; this server queues at most {capacity} at once \
-                     (--queue-capacity): split the sweep"
-                ),
-            )]));
-        }
-        let (sweep, problems) = jobs
+        let stored = document.to_string();
+        let sweep = sweep_for_table(document, max_variants)?;
+        let (sweep, problems) = self
             .admitting(move |limits| {
                 let problems = over_limit(&sweep, &vary_lists, limits);
                 (sweep, problems)
@@ -161,157 +103,86 @@ impl Sweeps {
         if !problems.is_empty() {
             return Err(SweepSubmitError::OverLimit(problems));
         }
-
-        let to_queue: Vec<(Scene, Value)> = sweep
-            .reference
-            .iter()
-            .cloned()
-            .zip(sweep.reference_document.iter().cloned())
-            .chain(sweep.variants.iter().map(|v| (v.scene.clone(), v.document.clone())))
-            .collect();
-        let mut queued = Vec::with_capacity(to_queue.len());
-        for (scene, document) in to_queue {
-            // Sweep runs carry no idempotency key, so their fingerprint is never compared.
-            let submission =
-                Submission { scene, document, fingerprint: 0, idempotency_key: None, max_work: None };
-            match jobs.submit(submission).await {
-                Ok(submitted) => queued.push(submitted.job.id),
-                Err(e) => {
-                    for id in &queued {
-                        jobs.cancel(id).await?;
-                    }
-                    return Err(e.into());
-                }
-            }
+        if self.shared.stopped.load(std::sync::atomic::Ordering::Relaxed) {
+            return Err(SubmitError::ShuttingDown.into());
         }
-        let count = queued.len();
-        let mut queued = queued.into_iter();
-        let reference_job = sweep.reference.as_ref().and_then(|_| queued.next());
-        let queued_run = || Outcome::Pending { status: JobStatus::Queued.name().into(), detail: None };
-        let record = Arc::new(SweepRecord {
+        let runs = sweep.variants.len() + usize::from(sweep.reference.is_some());
+        let entry = SweepEntry {
             id: JobId::new(),
-            sweep,
-            reference_job,
-            variant_jobs: queued.collect(),
             created_ms: now_ms(),
-            runs: Mutex::new(Runs {
-                outcomes: (0..count).map(|_| queued_run()).collect(),
-                ended: vec![false; count],
-            }),
-        });
-        self.lock().insert(record.id.clone(), Arc::clone(&record));
-        tracing::info!(sweep = %record.id, runs, "sweep queued");
-        Ok(record)
+            runs: u32::try_from(runs).map_err(|_| SweepError::TooManyVariants {
+                variants: runs as u64,
+                limit: u64::from(u32::MAX),
+            })?,
+            has_reference: sweep.reference.is_some(),
+        };
+        self.shared.store.insert_sweep(&entry, &stored).await?;
+        self.shared.doorbell.ring_all();
+        tracing::info!(sweep = %entry.id, runs, "sweep queued");
+        Ok(SweepSummary { entry, cancel_requested: false, finished: 0, running: 0 })
     }
 
-    /// The sweep with this id.
-    pub fn get(&self, id: &JobId) -> Option<Arc<SweepRecord>> {
-        self.lock().get(id).cloned()
+    /// The sweep with this id, with how far its runs have got.
+    pub async fn sweep(&self, id: &JobId) -> Result<Option<SweepSummary>, StoreError> {
+        self.shared.store.sweep(id).await
+    }
+
+    /// Sweeps, newest first.
+    pub async fn list_sweeps(&self, page: Page) -> Result<Vec<SweepSummary>, StoreError> {
+        self.shared.store.list_sweeps(page).await
     }
 
     /// The sweep's table as it stands: ended runs read back from their results, others pending.
-    /// The store is read here, for the runs not known to have ended; reading their results back
-    /// and assembling the table, CPU work that grows with the sweep, runs on the blocking pool.
-    pub async fn state(&self, jobs: &Jobs, record: &Arc<SweepRecord>) -> Result<SweepState, StoreError> {
-        let ended = record.runs().ended.clone();
-        let mut fresh = Vec::new();
-        for (index, id) in record.jobs().enumerate().filter(|(index, _)| !ended[*index]) {
-            fresh.push((index, stored_run(jobs, id).await?));
+    /// Reading the sweep and its runs back and assembling the table, CPU work that grows with
+    /// the sweep, runs on the blocking pool.
+    pub async fn sweep_state(&self, summary: SweepSummary) -> Result<SweepState, StoreError> {
+        let runs = self.shared.store.sweep_runs(&summary.entry.id).await?;
+        let shared = Arc::clone(&self.shared);
+        tokio::task::spawn_blocking(move || {
+            let id = &summary.entry.id;
+            let sweep = shared.sweep_blocking(id)?.ok_or_else(|| StoreError::NotFound(id.clone()))?;
+            Ok(assemble(summary, &sweep, runs))
+        })
+        .await
+        .map_err(|e| StoreError::Backend(format!("assembling the sweep table failed: {e}")))?
+    }
+
+    /// Cancels a sweep: its runs not started end at once, and those running (here or on another
+    /// instance) stop within a lease renewal. `None` if there is no such sweep.
+    pub async fn cancel_sweep(&self, id: &JobId) -> Result<Option<SweepSummary>, StoreError> {
+        let summary = self.shared.store.cancel_sweep(id, now_ms(), CANCELLED).await?;
+        if summary.is_some() {
+            self.shared.batches().iter().filter(|batch| &batch.sweep == id).for_each(|batch| batch.cancel());
+            self.shared.changed();
         }
-        let record = Arc::clone(record);
-        tokio::task::spawn_blocking(move || assemble(&record, fresh))
-            .await
-            .map_err(|e| StoreError::Backend(format!("assembling the sweep table failed: {e}")))
-    }
-
-    /// Cancels every job of the sweep that has not ended.
-    pub async fn cancel(&self, jobs: &Jobs, record: &SweepRecord) -> Result<(), StoreError> {
-        for id in record.jobs() {
-            jobs.cancel(id).await?;
-        }
-        Ok(())
-    }
-
-    fn lock(&self) -> std::sync::MutexGuard<'_, HashMap<JobId, Arc<SweepRecord>>> {
-        self.sweeps.lock().unwrap_or_else(PoisonError::into_inner)
+        Ok(summary)
     }
 }
 
-/// A sweep run keeps only its final positions, as JSON, which is all its table row needs and
-/// what [`read_json`] reads back.
-fn keep_final_positions(scene: &mut Scene) {
-    scene.output.frames = FrameSelection::Final;
-    scene.output.fields = vec![Field::Positions];
-    scene.output.format = Format::Json;
-}
-
-/// The same change in the document a worker runs from.
-fn keep_final_positions_in_document(document: &mut Value) {
-    if let Some(scene) = document.as_object_mut() {
-        let output = scene.entry("output").or_insert_with(|| serde_json::json!({}));
-        if let Some(output) = output.as_object_mut() {
-            output.insert("frames".into(), "final".into());
-            output.insert("fields".into(), serde_json::json!(["positions"]));
-            output.insert("format".into(), "json".into());
-        }
-    }
-}
-
-/// A run as the store has it: its job's id and stored result, or where it stands without one.
-enum StoredRun {
-    Result(JobId, Bytes),
-    Pending(Outcome),
-}
-
-/// Where a run stands, from its job.
-async fn stored_run(jobs: &Jobs, id: &JobId) -> Result<StoredRun, StoreError> {
-    let Some(job) = jobs.get(id).await? else {
-        return Ok(StoredRun::Pending(Outcome::Pending {
-            status: "failed".into(),
-            detail: Some(format!("job {id} is no longer kept by this server")),
-        }));
-    };
-    if job.status.is_final()
-        && let Some(result) = jobs.result(id).await?
-    {
-        return Ok(StoredRun::Result(id.clone(), result.bytes));
-    }
-    Ok(StoredRun::Pending(Outcome::Pending { status: job.status.name().into(), detail: job.message }))
-}
-
-/// Reads the results of the runs just read from the store back, keeps the outcomes of those
-/// that ended, and assembles the table.
-fn assemble(record: &SweepRecord, fresh: Vec<(usize, StoredRun)>) -> SweepState {
-    let mut runs = record.runs();
-    let Runs { outcomes, ended } = &mut *runs;
-    // A poll that read the store earlier than another may come second: what has ended stays.
-    for (index, run) in fresh {
-        if ended[index] {
-            continue;
-        }
-        let outcome = match run {
-            StoredRun::Pending(outcome) => outcome,
-            StoredRun::Result(id, bytes) => match read_json(&bytes) {
-                Ok(recording) => Outcome::Finished(Box::new(recording)),
-                Err(e) => Outcome::Pending {
-                    status: "failed".into(),
-                    detail: Some(format!("job {id}'s result cannot be read: {e}")),
-                },
-            },
-        };
-        ended[index] = match &outcome {
-            Outcome::Finished(_) => true,
-            Outcome::Pending { status, .. } => !matches!(status.as_str(), "queued" | "running"),
-        };
-        outcomes[index] = outcome;
-    }
-    let finished = ended.iter().filter(|&&e| e).count();
-    let (reference, variants) = match record.reference_job {
+/// The table of `sweep` from its stored runs.
+fn assemble(summary: SweepSummary, sweep: &Sweep, runs: Vec<StoredRun>) -> SweepState {
+    let finished = runs.iter().filter(|run| run.status.is_final()).count();
+    let outcomes: Vec<Outcome> = runs.into_iter().map(outcome).collect();
+    let (reference, variants) = match sweep.reference {
         Some(_) => (outcomes.first(), outcomes.get(1..).unwrap_or_default()),
         None => (None, &outcomes[..]),
     };
-    let table = Table::assemble(&record.sweep, reference, variants);
-    SweepState { table, finished, runs: outcomes.len() }
+    let table = Table::assemble(sweep, reference, variants);
+    SweepState { variants: sweep.variants.len(), runs: outcomes.len(), summary, table, finished }
+}
+
+/// A stored run as a table row's outcome.
+fn outcome(run: StoredRun) -> Outcome {
+    match run.result {
+        Some(bytes) if run.status.is_final() => match read_json(&bytes) {
+            Ok(recording) => Outcome::Finished(Box::new(recording)),
+            Err(e) => Outcome::Pending {
+                status: JobStatus::Failed.name().into(),
+                detail: Some(format!("the run's result cannot be read: {e}")),
+            },
+        },
+        _ => Outcome::Pending { status: run.status.name().into(), detail: run.message },
+    }
 }
 
 /// Every limit a run of `sweep` (read from `document`) exceeds when run for its table (final

@@ -225,3 +225,35 @@ pub async fn result(client: &reqwest::Client, base: &str, id: &str) -> Value {
     assert_eq!(response.status(), 200, "job {id}");
     response.json().await.unwrap()
 }
+
+/// Submits a sweep; returns its id.
+pub async fn submit_sweep(client: &reqwest::Client, base: &str, sweep: &str) -> String {
+    let response = client
+        .post(format!("{base}/sweeps"))
+        .header("content-type", "application/json")
+        .body(sweep.to_string())
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(response.status(), 202);
+    response.json::<Value>().await.unwrap()["id"].as_str().unwrap().to_string()
+}
+
+/// The sweep as `GET /sweeps/{id}` shows it.
+pub async fn sweep(client: &reqwest::Client, base: &str, id: &str) -> Value {
+    client.get(format!("{base}/sweeps/{id}")).send().await.unwrap().json().await.unwrap()
+}
+
+/// Polls the sweep until `done` holds, within [`PATIENCE`].
+pub async fn wait_for_sweep(
+    client: &reqwest::Client,
+    base: &str,
+    id: &str,
+    done: impl Fn(&Value) -> bool,
+) -> Value {
+    deadline::poll_until_some(&format!("sweep {id} to get there"), || async {
+        let sweep = sweep(client, base, id).await;
+        done(&sweep).then_some(sweep)
+    })
+    .await
+}

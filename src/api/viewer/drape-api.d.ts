@@ -152,20 +152,48 @@ export interface paths {
             path?: never;
             cookie?: never;
         };
-        get?: never;
+        /** Sweeps, newest first, each with its progress (without its table). */
+        get: operations["listSweeps"];
         put?: never;
         /**
-         * Queue every variant of a sweep (and its reference) as jobs.
+         * Store a sweep, one entry whatever its size, with its reference and every variant waiting to run.
          * @description The body is a sweep (a base `scene`, `vary` mapping JSON Pointers into the scene to lists
-         *     of values, an optional `reference` merge patch). Everything is checked before any job is
-         *     queued: each pointer must reach into the scene, every variant must be a valid scene, the
-         *     variant count must be within `--max-sweep-variants`, every run must fit the per-job
-         *     limits and all runs must fit in the queue; each refusal is a 422 whose `errors` point
-         *     into the sweep document (`/vary/~1dt/2` names the value at fault). Each run keeps only
-         *     its final positions. If the queue fills part-way, the runs already queued are cancelled
-         *     and the answer is a 429.
+         *     of values, an optional `reference` merge patch). Everything is checked before the sweep
+         *     is stored: each pointer must reach into the scene, every variant must be a valid scene,
+         *     the variant count must be within `--max-sweep-variants` (default 10,000) and every run
+         *     must fit the per-job limits; each refusal is a 422 whose `errors` point into the sweep
+         *     document (`/vary/~1dt/2` names the value at fault). A sweep takes no room in the job
+         *     queue (`--queue-capacity`): its runs wait in the store, survive restarts, and are run by
+         *     the workers of every instance sharing the store, a batch at a time, when no single job
+         *     is queued. Each run keeps only its final positions and statistics.
          */
         post: operations["submitSweep"];
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
+    "/sweeps/{id}/events": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path: {
+                /** @description A sweep id, 16 lowercase hex digits. */
+                id: components["parameters"]["SweepId"];
+            };
+            cookie?: never;
+        };
+        /**
+         * Server-sent events that follow a sweep to its end.
+         * @description `progress` events (data: `SweepSummary`) at most four a second while runs start and
+         *     end, then one `end` event (data: `Sweep`, with its table) when every run has ended, and
+         *     the stream closes. A sweep that has already ended gets the `end` event at once. Any
+         *     instance sharing the store follows any sweep.
+         */
+        get: operations["followSweep"];
+        put?: never;
+        post?: never;
         delete?: never;
         options?: never;
         head?: never;
@@ -192,7 +220,7 @@ export interface paths {
         get: operations["getSweep"];
         put?: never;
         post?: never;
-        /** Cancel every job of the sweep that has not ended. */
+        /** Cancel the sweep's runs that have not ended. */
         delete: operations["cancelSweep"];
         options?: never;
         head?: never;
@@ -1221,19 +1249,33 @@ export interface components {
             variants: number;
             /** @description Every run has ended. */
             complete: boolean;
-            progress: {
-                finished?: number;
-                runs?: number;
-            };
-            jobs: {
-                reference?: string | null;
-                variants?: string[];
-            };
-            links: {
-                self?: string;
-                csv?: string;
-                plot?: string;
-            };
+            cancel_requested: boolean;
+            progress: components["schemas"]["SweepProgress"];
+            links: components["schemas"]["SweepLinks"];
+        };
+        /** @description A sweep without its table, as `GET /sweeps` lists it. */
+        SweepSummary: {
+            id: string;
+            /** Format: date-time */
+            created_at: string;
+            variants: number;
+            /** @description Every run has ended. */
+            complete: boolean;
+            cancel_requested: boolean;
+            progress: components["schemas"]["SweepProgress"];
+            links: components["schemas"]["SweepLinks"];
+        };
+        /** @description Runs of the sweep (its reference included) that have ended, are held by a worker, and in all. */
+        SweepProgress: {
+            finished: number;
+            running?: number;
+            runs: number;
+        };
+        SweepLinks: {
+            self?: string;
+            csv?: string;
+            plot?: string;
+            events?: string;
         };
     };
     responses: {
@@ -1715,6 +1757,42 @@ export interface operations {
             431: components["responses"]["HeaderFieldsTooLarge"];
         };
     };
+    listSweeps: {
+        parameters: {
+            query?: {
+                /** @description How many of the newest sweeps to skip. */
+                offset?: number;
+                /** @description How many sweeps to list at most. */
+                limit?: number;
+            };
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        requestBody?: never;
+        responses: {
+            /** @description A page of sweeps. */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": {
+                        sweeps: components["schemas"]["SweepSummary"][];
+                        offset: number;
+                        limit: number;
+                        /** @description The next page, or null on the last one. */
+                        next: string | null;
+                    };
+                };
+            };
+            400: components["responses"]["Problem"];
+            401: components["responses"]["Unauthorized"];
+            414: components["responses"]["UriTooLong"];
+            421: components["responses"]["HostNotAllowed"];
+            431: components["responses"]["HeaderFieldsTooLarge"];
+        };
+    };
     submitSweep: {
         parameters: {
             query?: never;
@@ -1746,9 +1824,40 @@ export interface operations {
             415: components["responses"]["UnsupportedMediaType"];
             421: components["responses"]["HostNotAllowed"];
             422: components["responses"]["Problem"];
-            429: components["responses"]["QueueFull"];
             431: components["responses"]["HeaderFieldsTooLarge"];
             503: components["responses"]["Problem"];
+        };
+    };
+    followSweep: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path: {
+                /** @description A sweep id, 16 lowercase hex digits. */
+                id: components["parameters"]["SweepId"];
+            };
+            cookie?: never;
+        };
+        requestBody?: never;
+        responses: {
+            /** @description An event stream. */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "text/event-stream": {
+                        /** @enum {string} */
+                        event: "progress" | "end";
+                        data: string;
+                    };
+                };
+            };
+            401: components["responses"]["Unauthorized"];
+            404: components["responses"]["Problem"];
+            414: components["responses"]["UriTooLong"];
+            421: components["responses"]["HostNotAllowed"];
+            431: components["responses"]["HeaderFieldsTooLarge"];
         };
     };
     getSweep: {
@@ -1796,7 +1905,7 @@ export interface operations {
         };
         requestBody?: never;
         responses: {
-            /** @description Cancelling; running jobs stop within a second, inside a step or a linear solve if need be. */
+            /** @description Cancelling; runs not started end at once, running ones stop within a second, on whichever instance runs them. */
             202: {
                 headers: {
                     [name: string]: unknown;

@@ -10,8 +10,9 @@ use std::sync::Mutex;
 use async_trait::async_trait;
 
 use super::{
-    AssetRecord, AssetRoom, CancelRequest, Claim, Claimed, Inserted, JobStore, Lease, Outcome, Page,
-    PutAsset, Renewed, StoreError, StoredResult, attempts_exhausted,
+    AssetRecord, AssetRoom, CancelRequest, Claim, Claimed, ClaimedRun, ClaimedRuns, HeldRun, Inserted,
+    JobStore, Lease, Outcome, Page, PutAsset, Renewed, RunEnd, StoreError, StoredResult, StoredRun,
+    SweepEntry, SweepSummary, attempts_exhausted,
 };
 use crate::jobs::id::JobId;
 use crate::jobs::record::JobRecord;
@@ -35,6 +36,49 @@ struct State {
     next: u64,
     /// Uploaded meshes with their compact form, in upload order.
     assets: Vec<(AssetRecord, Vec<u8>)>,
+    /// Sweeps with their runs, in submission order.
+    sweeps: Vec<SweepState>,
+}
+
+struct SweepState {
+    entry: SweepEntry,
+    document: String,
+    cancel_requested: bool,
+    runs: Vec<RunState>,
+}
+
+struct RunState {
+    stored: StoredRun,
+    attempts: u32,
+    lease: Option<Lease>,
+    cancel_requested: bool,
+}
+
+impl RunState {
+    fn claimable(&self, now_ms: u64) -> bool {
+        match self.stored.status {
+            JobStatus::Queued => true,
+            JobStatus::Running => self.lease.as_ref().is_none_or(|l| l.until_ms < now_ms),
+            _ => false,
+        }
+    }
+
+    fn held_by(&self, owner: &str) -> bool {
+        self.stored.status == JobStatus::Running && self.lease.as_ref().is_some_and(|l| l.owner == owner)
+    }
+}
+
+impl SweepState {
+    fn summary(&self) -> SweepSummary {
+        let count =
+            |f: &dyn Fn(JobStatus) -> bool| self.runs.iter().filter(|r| f(r.stored.status)).count() as u32;
+        SweepSummary {
+            entry: self.entry.clone(),
+            cancel_requested: self.cancel_requested,
+            finished: count(&JobStatus::is_final),
+            running: count(&|s| s == JobStatus::Running),
+        }
+    }
 }
 
 struct Entry {
@@ -369,6 +413,155 @@ impl JobStore for MemoryStore {
             s.assets.retain(|(a, _)| a.id != id);
             s.assets.len() < before
         }))
+    }
+
+    async fn insert_sweep(&self, sweep: &SweepEntry, document: &str) -> Result<(), StoreError> {
+        let queued = || RunState {
+            stored: StoredRun { status: JobStatus::Queued, message: None, result: None },
+            attempts: 0,
+            lease: None,
+            cancel_requested: false,
+        };
+        self.with(|s| {
+            s.sweeps.push(SweepState {
+                entry: sweep.clone(),
+                document: document.to_string(),
+                cancel_requested: false,
+                runs: (0..sweep.runs).map(|_| queued()).collect(),
+            })
+        });
+        Ok(())
+    }
+
+    async fn sweep(&self, id: &JobId) -> Result<Option<SweepSummary>, StoreError> {
+        Ok(self.with(|s| s.sweep(id).map(SweepState::summary)))
+    }
+
+    async fn sweep_document(&self, id: &JobId) -> Result<Option<String>, StoreError> {
+        Ok(self.with(|s| s.sweep(id).map(|sweep| sweep.document.clone())))
+    }
+
+    async fn list_sweeps(&self, page: Page) -> Result<Vec<SweepSummary>, StoreError> {
+        let skip = usize::try_from(page.offset).unwrap_or(usize::MAX);
+        let take = usize::try_from(page.limit).unwrap_or(usize::MAX);
+        Ok(self.with(|s| s.sweeps.iter().rev().skip(skip).take(take).map(SweepState::summary).collect()))
+    }
+
+    async fn sweep_runs(&self, id: &JobId) -> Result<Vec<StoredRun>, StoreError> {
+        Ok(self.with(|s| {
+            s.sweep(id).map(|sweep| sweep.runs.iter().map(|r| r.stored.clone()).collect()).unwrap_or_default()
+        }))
+    }
+
+    async fn claim_sweep_runs(
+        &self,
+        lease: &Lease,
+        now_ms: u64,
+        max_runs: u32,
+    ) -> Result<Option<ClaimedRuns>, StoreError> {
+        Ok(self.with(|s| {
+            let sweep = s.sweeps.iter_mut().find(|sweep| sweep.runs.iter().any(|r| r.claimable(now_ms)))?;
+            let mut claimed = Vec::new();
+            for (index, run) in sweep.runs.iter_mut().enumerate() {
+                if claimed.len() >= max_runs as usize {
+                    break;
+                }
+                if run.claimable(now_ms) {
+                    run.stored.status = JobStatus::Running;
+                    run.lease = Some(lease.clone());
+                    run.attempts += 1;
+                    claimed.push(ClaimedRun {
+                        index: index as u32,
+                        attempts: run.attempts,
+                        cancel_requested: run.cancel_requested,
+                    });
+                }
+            }
+            Some(ClaimedRuns { sweep: sweep.entry.id.clone(), runs: claimed })
+        }))
+    }
+
+    async fn renew_sweep_runs(&self, lease: &Lease) -> Result<Vec<HeldRun>, StoreError> {
+        Ok(self.with(|s| {
+            let mut held = Vec::new();
+            for sweep in &mut s.sweeps {
+                for (index, run) in sweep.runs.iter_mut().enumerate() {
+                    if run.held_by(&lease.owner) {
+                        run.lease = Some(lease.clone());
+                        held.push(HeldRun {
+                            sweep: sweep.entry.id.clone(),
+                            index: index as u32,
+                            cancel_requested: run.cancel_requested,
+                        });
+                    }
+                }
+            }
+            held
+        }))
+    }
+
+    async fn finish_sweep_run(&self, sweep: &JobId, owner: &str, end: RunEnd) -> Result<bool, StoreError> {
+        Ok(self.with(|s| {
+            let Some(run) = s.sweep_mut(sweep).and_then(|sweep| sweep.runs.get_mut(end.index as usize))
+            else {
+                return false;
+            };
+            if !run.held_by(owner) {
+                return false;
+            }
+            run.stored = StoredRun { status: end.status, message: end.message, result: end.result };
+            run.lease = None;
+            true
+        }))
+    }
+
+    async fn release_sweep_runs(&self, sweep: &JobId, owner: &str, runs: &[u32]) -> Result<(), StoreError> {
+        self.with(|s| {
+            let Some(sweep) = s.sweep_mut(sweep) else { return };
+            for &index in runs {
+                if let Some(run) = sweep.runs.get_mut(index as usize).filter(|run| run.held_by(owner)) {
+                    run.stored.status = JobStatus::Queued;
+                    run.attempts = run.attempts.saturating_sub(1);
+                    run.lease = None;
+                }
+            }
+        });
+        Ok(())
+    }
+
+    async fn cancel_sweep(
+        &self,
+        id: &JobId,
+        now_ms: u64,
+        message: &str,
+    ) -> Result<Option<SweepSummary>, StoreError> {
+        Ok(self.with(|s| {
+            let sweep = s.sweep_mut(id)?;
+            sweep.cancel_requested = true;
+            for run in &mut sweep.runs {
+                if run.claimable(now_ms) {
+                    run.stored = StoredRun {
+                        status: JobStatus::Cancelled,
+                        message: Some(message.into()),
+                        result: None,
+                    };
+                    run.lease = None;
+                } else if run.stored.status == JobStatus::Running {
+                    run.cancel_requested = true;
+                }
+            }
+            Some(sweep.summary())
+        }))
+    }
+}
+
+impl State {
+    fn sweep(&self, id: &JobId) -> Option<&SweepState> {
+        self.sweeps.iter().find(|sweep| &sweep.entry.id == id)
+    }
+
+    fn sweep_mut(&mut self, id: &JobId) -> Option<&mut SweepState> {
+        self.sweeps.iter_mut().find(|sweep| &sweep.entry.id == id)
     }
 }
 

@@ -17,6 +17,10 @@
 //! starts that never ended (each crashed or lost its instance) is not handed over but failed:
 //! it may be what crashes the instances. A job released at shutdown gets its attempt back.
 //!
+//! A sweep is one entry ([`SweepEntry`], with its document) and a row per run: workers claim a
+//! batch of one sweep's runs at once under a lease ([`JobStore::claim_sweep_runs`]), counting an
+//! attempt like a job's claim, and store each run's end as it comes.
+//!
 //! The backends are [`MemoryStore`], [`SqliteStore`] (the default) and [`PostgresStore`]
 //! (several instances, one queue); the two SQL ones share their statements (`sql`), and
 //! [`StoreUrl`] picks and opens one.
@@ -30,11 +34,13 @@ mod open;
 mod postgres;
 mod sql;
 mod sqlite;
+mod sweep_rows;
 
 pub use memory::MemoryStore;
 pub use open::StoreUrl;
 pub use postgres::PostgresStore;
 pub use sqlite::SqliteStore;
+pub use sweep_rows::{ClaimedRun, ClaimedRuns, HeldRun, RunEnd, StoredRun, SweepEntry, SweepSummary};
 
 use crate::jobs::id::JobId;
 use crate::jobs::record::JobRecord;
@@ -279,4 +285,49 @@ pub trait JobStore: Send + Sync + 'static {
 
     /// Deletes an asset; returns whether there was one.
     async fn delete_asset(&self, id: &str) -> Result<bool, StoreError>;
+
+    /// Adds a sweep with its document and a queued row for each of its runs.
+    async fn insert_sweep(&self, sweep: &SweepEntry, document: &str) -> Result<(), StoreError>;
+
+    /// The sweep with this id, with how far its runs have got.
+    async fn sweep(&self, id: &JobId) -> Result<Option<SweepSummary>, StoreError>;
+
+    /// The document the sweep was submitted with.
+    async fn sweep_document(&self, id: &JobId) -> Result<Option<String>, StoreError>;
+
+    /// Sweeps, newest first.
+    async fn list_sweeps(&self, page: Page) -> Result<Vec<SweepSummary>, StoreError>;
+
+    /// Every run of a sweep, in run order; empty if there is no such sweep.
+    async fn sweep_runs(&self, id: &JobId) -> Result<Vec<StoredRun>, StoreError>;
+
+    /// Takes up to `max_runs` runs of the oldest sweep with runs queued, or running under a lease
+    /// that lapsed before `now_ms`, marks them running under `lease` and counts an attempt for
+    /// each, in one atomic step committed before it returns; `None` if there are none.
+    async fn claim_sweep_runs(
+        &self,
+        lease: &Lease,
+        now_ms: u64,
+        max_runs: u32,
+    ) -> Result<Option<ClaimedRuns>, StoreError>;
+
+    /// Extends the lease of every run `lease.owner` holds; returns them.
+    async fn renew_sweep_runs(&self, lease: &Lease) -> Result<Vec<HeldRun>, StoreError>;
+
+    /// Records how a run ended, if `owner` still holds it; returns whether it did.
+    async fn finish_sweep_run(&self, sweep: &JobId, owner: &str, end: RunEnd) -> Result<bool, StoreError>;
+
+    /// Puts runs `owner` holds back in the queue; the attempts they were claimed with are not
+    /// counted.
+    async fn release_sweep_runs(&self, sweep: &JobId, owner: &str, runs: &[u32]) -> Result<(), StoreError>;
+
+    /// Cancels a sweep: its queued runs (and running ones whose lease lapsed before `now_ms`) end
+    /// `cancelled` with `message` at once, and those running under a live lease are flagged for
+    /// their holder. `None` if there is no such sweep.
+    async fn cancel_sweep(
+        &self,
+        id: &JobId,
+        now_ms: u64,
+        message: &str,
+    ) -> Result<Option<SweepSummary>, StoreError>;
 }

@@ -31,6 +31,77 @@ use crate::jobs::status::{Failure, JobStatus};
 pub(super) const COLUMNS: &str = "id, status, created_ms, started_ms, finished_ms, particles, springs, steps, \
      companion_steps, dt, duration, steps_done, message, failure, stats, idem_key, idem_fingerprint, attempts";
 
+/// The columns of a sweep (`s`) as [`SweepRow`] reads them, with its runs counted.
+const SWEEP_COLUMNS: &str = "s.id, s.created_ms, s.runs, s.has_reference, s.cancel_requested, \
+     (SELECT COUNT(*) FROM sweep_runs r WHERE r.sweep_id = s.id AND r.status NOT IN ('queued', 'running')) \
+     AS finished, \
+     (SELECT COUNT(*) FROM sweep_runs r WHERE r.sweep_id = s.id AND r.status = 'running') AS running";
+
+/// A sweep as a row of `sweeps`, with its runs counted.
+#[derive(sqlx::FromRow)]
+pub(super) struct SweepRow {
+    id: String,
+    created_ms: i64,
+    runs: i64,
+    has_reference: bool,
+    cancel_requested: bool,
+    finished: i64,
+    running: i64,
+}
+
+impl SweepRow {
+    pub(super) fn into_summary(self) -> Result<super::SweepSummary, StoreError> {
+        let id = JobId::parse(&self.id).ok_or_else(|| corrupt(format!("a sweep id `{}`", self.id)))?;
+        let count = |n: i64| u32::try_from(n).map_err(|_| corrupt(format!("a sweep of {n} runs")));
+        Ok(super::SweepSummary {
+            entry: super::SweepEntry {
+                id,
+                created_ms: self.created_ms as u64,
+                runs: count(self.runs)?,
+                has_reference: self.has_reference,
+            },
+            cancel_requested: self.cancel_requested,
+            finished: count(self.finished)?,
+            running: count(self.running)?,
+        })
+    }
+}
+
+/// A run as a row of `sweep_runs`.
+#[derive(sqlx::FromRow)]
+pub(super) struct RunRow {
+    status: String,
+    message: Option<String>,
+    result: Option<Vec<u8>>,
+}
+
+impl RunRow {
+    pub(super) fn into_run(self) -> Result<super::StoredRun, StoreError> {
+        Ok(super::StoredRun {
+            status: status(&self.status)?,
+            message: self.message,
+            result: self.result.as_deref().map(decompress).transpose()?,
+        })
+    }
+}
+
+/// A claimed or renewed run: its sweep, number, attempts (when claimed) and cancel flag.
+pub(super) fn held_run(
+    sweep: &str,
+    index: i64,
+    cancel_requested: bool,
+) -> Result<super::HeldRun, StoreError> {
+    Ok(super::HeldRun {
+        sweep: JobId::parse(sweep).ok_or_else(|| corrupt(format!("a sweep id `{sweep}`")))?,
+        index: u32::try_from(index).map_err(|_| corrupt(format!("a run numbered {index}")))?,
+        cancel_requested,
+    })
+}
+
+fn status(name: &str) -> Result<JobStatus, StoreError> {
+    JobStatus::ALL.into_iter().find(|s| s.name() == name).ok_or_else(|| corrupt(format!("a status `{name}`")))
+}
+
 /// The columns of an asset as [`AssetRow`] reads them.
 const ASSET_COLUMNS: &str = "id, vertices, triangles, bytes, created_ms";
 
@@ -81,6 +152,19 @@ pub(super) struct Statements {
     pub asset_mesh: String,
     pub list_assets: String,
     pub delete_asset: String,
+    pub insert_sweep: String,
+    pub insert_sweep_runs: String,
+    pub sweep: String,
+    pub sweep_document: String,
+    pub list_sweeps: String,
+    pub sweep_runs: String,
+    pub claim_sweep_runs: String,
+    pub renew_sweep_runs: String,
+    pub finish_sweep_run: String,
+    pub release_sweep_run: String,
+    pub flag_sweep_cancel: String,
+    pub cancel_sweep_runs_now: String,
+    pub flag_sweep_runs_cancel: String,
 }
 
 /// Which backend the statements are for.
@@ -172,6 +256,64 @@ impl Statements {
             asset_mesh: placeholders("SELECT mesh FROM assets WHERE id = $1".into()),
             list_assets: format!("SELECT {ASSET_COLUMNS} FROM assets ORDER BY seq DESC"),
             delete_asset: placeholders("DELETE FROM assets WHERE id = $1".into()),
+            insert_sweep: placeholders(
+                "INSERT INTO sweeps (id, created_ms, runs, has_reference, document) VALUES ($1, $2, $3, $4, $5)"
+                    .into(),
+            ),
+            // One statement makes every run's row, however many there are.
+            insert_sweep_runs: placeholders(
+                "WITH RECURSIVE n (i) AS (SELECT 0 UNION ALL SELECT i + 1 FROM n WHERE i + 1 < $2) \
+                 INSERT INTO sweep_runs (sweep_id, idx, status) SELECT $1, i, 'queued' FROM n"
+                    .into(),
+            ),
+            sweep: placeholders(format!("SELECT {SWEEP_COLUMNS} FROM sweeps s WHERE s.id = $1")),
+            sweep_document: placeholders("SELECT document FROM sweeps WHERE id = $1".into()),
+            list_sweeps: placeholders(format!(
+                "SELECT {SWEEP_COLUMNS} FROM sweeps s ORDER BY s.seq DESC LIMIT $1 OFFSET $2"
+            )),
+            sweep_runs: placeholders(
+                "SELECT status, message, result FROM sweep_runs WHERE sweep_id = $1 ORDER BY idx".into(),
+            ),
+            // The runs of one sweep, the oldest with runs to claim.
+            // The runs are picked in a CTE, evaluated once: PostgreSQL may evaluate an `IN`
+            // subquery again for each row it updates, and each time skip other rows.
+            claim_sweep_runs: placeholders(format!(
+                "WITH picked AS (SELECT seq FROM sweep_runs WHERE {claimable} AND sweep_id = \
+                 (SELECT sweep_id FROM sweep_runs WHERE {claimable} ORDER BY seq LIMIT 1) \
+                 ORDER BY seq LIMIT $4 {lock}) \
+                 UPDATE sweep_runs SET status = 'running', lease_owner = $1, lease_until_ms = $2, \
+                 attempts = attempts + 1 \
+                 WHERE seq IN (SELECT seq FROM picked) AND {claimable} \
+                 RETURNING sweep_id, idx, attempts, cancel_requested"
+            )),
+            renew_sweep_runs: placeholders(
+                "UPDATE sweep_runs SET lease_until_ms = $1 WHERE lease_owner = $2 AND status = 'running' \
+                 RETURNING sweep_id, idx, cancel_requested"
+                    .into(),
+            ),
+            finish_sweep_run: placeholders(
+                "UPDATE sweep_runs SET status = $1, message = $2, result = $3, lease_owner = NULL, \
+                 lease_until_ms = NULL \
+                 WHERE sweep_id = $4 AND idx = $5 AND status = 'running' AND lease_owner = $6"
+                    .into(),
+            ),
+            release_sweep_run: placeholders(
+                "UPDATE sweep_runs SET status = 'queued', attempts = attempts - 1, lease_owner = NULL, \
+                 lease_until_ms = NULL \
+                 WHERE sweep_id = $1 AND idx = $2 AND status = 'running' AND lease_owner = $3"
+                    .into(),
+            ),
+            flag_sweep_cancel: placeholders("UPDATE sweeps SET cancel_requested = TRUE WHERE id = $1".into()),
+            cancel_sweep_runs_now: placeholders(
+                "UPDATE sweep_runs SET status = 'cancelled', message = $2, lease_owner = NULL, \
+                 lease_until_ms = NULL \
+                 WHERE sweep_id = $1 AND status IN ('queued', 'running') \
+                 AND (status = 'queued' OR lease_until_ms < $3)"
+                    .into(),
+            ),
+            flag_sweep_runs_cancel: placeholders(
+                "UPDATE sweep_runs SET cancel_requested = TRUE WHERE sweep_id = $1 AND status = 'running'".into(),
+            ),
         }
     }
 }
@@ -210,10 +352,7 @@ pub(super) struct ClaimRow {
 impl JobRow {
     pub(super) fn into_record(self) -> Result<JobRecord, StoreError> {
         let id = JobId::parse(&self.id).ok_or_else(|| corrupt(format!("a job id `{}`", self.id)))?;
-        let status = JobStatus::ALL
-            .into_iter()
-            .find(|s| s.name() == self.status)
-            .ok_or_else(|| corrupt(format!("a status `{}`", self.status)))?;
+        let status = status(&self.status)?;
         let stats = self
             .stats
             .map(|text| serde_json::from_str(&text))
@@ -682,6 +821,204 @@ macro_rules! sql_store {
                     .await
                     .map_err($crate::jobs::store::sql::backend)?;
                 Ok(deleted.rows_affected() == 1)
+            }
+
+            async fn insert_sweep(
+                &self,
+                sweep: &$crate::jobs::SweepEntry,
+                document: &str,
+            ) -> Result<(), $crate::jobs::StoreError> {
+                use $crate::jobs::store::sql::{backend, int};
+                let mut tx = self.pool.begin().await.map_err(backend)?;
+                sqlx::query(&self.sql.insert_sweep)
+                    .bind(sweep.id.as_str())
+                    .bind(int(sweep.created_ms))
+                    .bind(i64::from(sweep.runs))
+                    .bind(sweep.has_reference)
+                    .bind(document)
+                    .execute(&mut *tx)
+                    .await
+                    .map_err(backend)?;
+                sqlx::query(&self.sql.insert_sweep_runs)
+                    .bind(sweep.id.as_str())
+                    .bind(i64::from(sweep.runs))
+                    .execute(&mut *tx)
+                    .await
+                    .map_err(backend)?;
+                tx.commit().await.map_err(backend)
+            }
+
+            async fn sweep(
+                &self,
+                id: &$crate::jobs::JobId,
+            ) -> Result<Option<$crate::jobs::SweepSummary>, $crate::jobs::StoreError> {
+                sqlx::query_as::<_, $crate::jobs::store::sql::SweepRow>(&self.sql.sweep)
+                    .bind(id.as_str())
+                    .fetch_optional(&self.pool)
+                    .await
+                    .map_err($crate::jobs::store::sql::backend)?
+                    .map($crate::jobs::store::sql::SweepRow::into_summary)
+                    .transpose()
+            }
+
+            async fn sweep_document(
+                &self,
+                id: &$crate::jobs::JobId,
+            ) -> Result<Option<String>, $crate::jobs::StoreError> {
+                let row: Option<(String,)> = sqlx::query_as(&self.sql.sweep_document)
+                    .bind(id.as_str())
+                    .fetch_optional(&self.pool)
+                    .await
+                    .map_err($crate::jobs::store::sql::backend)?;
+                Ok(row.map(|(document,)| document))
+            }
+
+            async fn list_sweeps(
+                &self,
+                page: $crate::jobs::Page,
+            ) -> Result<Vec<$crate::jobs::SweepSummary>, $crate::jobs::StoreError> {
+                use $crate::jobs::store::sql::int;
+                sqlx::query_as::<_, $crate::jobs::store::sql::SweepRow>(&self.sql.list_sweeps)
+                    .bind(int(page.limit.min(i64::MAX as u64)))
+                    .bind(int(page.offset.min(i64::MAX as u64)))
+                    .fetch_all(&self.pool)
+                    .await
+                    .map_err($crate::jobs::store::sql::backend)?
+                    .into_iter()
+                    .map($crate::jobs::store::sql::SweepRow::into_summary)
+                    .collect()
+            }
+
+            async fn sweep_runs(
+                &self,
+                id: &$crate::jobs::JobId,
+            ) -> Result<Vec<$crate::jobs::StoredRun>, $crate::jobs::StoreError> {
+                let rows = sqlx::query_as::<_, $crate::jobs::store::sql::RunRow>(&self.sql.sweep_runs)
+                    .bind(id.as_str())
+                    .fetch_all(&self.pool)
+                    .await
+                    .map_err($crate::jobs::store::sql::backend)?;
+                // Inflating every run's result is CPU work that grows with the sweep.
+                tokio::task::spawn_blocking(move || rows.into_iter().map(|row| row.into_run()).collect())
+                    .await
+                    .map_err(|e| $crate::jobs::StoreError::Backend(e.to_string()))?
+            }
+
+            async fn claim_sweep_runs(
+                &self,
+                lease: &$crate::jobs::Lease,
+                now_ms: u64,
+                max_runs: u32,
+            ) -> Result<Option<$crate::jobs::ClaimedRuns>, $crate::jobs::StoreError> {
+                use $crate::jobs::store::sql::{backend, held_run, int};
+                use $crate::jobs::{ClaimedRun, ClaimedRuns};
+                let mut tx = self.pool.begin().await.map_err(backend)?;
+                let rows: Vec<(String, i64, i64, bool)> = sqlx::query_as(&self.sql.claim_sweep_runs)
+                    .bind(&lease.owner)
+                    .bind(int(lease.until_ms))
+                    .bind(int(now_ms))
+                    .bind(i64::from(max_runs))
+                    .fetch_all(&mut *tx)
+                    .await
+                    .map_err(backend)?;
+                tx.commit().await.map_err(backend)?;
+                let mut sweep = None;
+                let mut runs = Vec::with_capacity(rows.len());
+                for (id, index, attempts, cancel_requested) in rows {
+                    let held = held_run(&id, index, cancel_requested)?;
+                    sweep = Some(held.sweep);
+                    let attempts = u32::try_from(attempts).unwrap_or(u32::MAX);
+                    runs.push(ClaimedRun { index: held.index, attempts, cancel_requested });
+                }
+                runs.sort_by_key(|run| run.index);
+                Ok(sweep.map(|sweep| ClaimedRuns { sweep, runs }))
+            }
+
+            async fn renew_sweep_runs(
+                &self,
+                lease: &$crate::jobs::Lease,
+            ) -> Result<Vec<$crate::jobs::HeldRun>, $crate::jobs::StoreError> {
+                use $crate::jobs::store::sql::{backend, held_run, int};
+                let rows: Vec<(String, i64, bool)> = sqlx::query_as(&self.sql.renew_sweep_runs)
+                    .bind(int(lease.until_ms))
+                    .bind(&lease.owner)
+                    .fetch_all(&self.pool)
+                    .await
+                    .map_err(backend)?;
+                rows.into_iter().map(|(sweep, index, cancel)| held_run(&sweep, index, cancel)).collect()
+            }
+
+            async fn finish_sweep_run(
+                &self,
+                sweep: &$crate::jobs::JobId,
+                owner: &str,
+                end: $crate::jobs::RunEnd,
+            ) -> Result<bool, $crate::jobs::StoreError> {
+                use $crate::jobs::store::sql::{backend, compress};
+                let result = end.result.as_deref().map(compress).transpose()?;
+                let ended = sqlx::query(&self.sql.finish_sweep_run)
+                    .bind(end.status.name())
+                    .bind(end.message)
+                    .bind(result)
+                    .bind(sweep.as_str())
+                    .bind(i64::from(end.index))
+                    .bind(owner)
+                    .execute(&self.pool)
+                    .await
+                    .map_err(backend)?;
+                Ok(ended.rows_affected() == 1)
+            }
+
+            async fn release_sweep_runs(
+                &self,
+                sweep: &$crate::jobs::JobId,
+                owner: &str,
+                runs: &[u32],
+            ) -> Result<(), $crate::jobs::StoreError> {
+                use $crate::jobs::store::sql::backend;
+                let mut tx = self.pool.begin().await.map_err(backend)?;
+                for &index in runs {
+                    sqlx::query(&self.sql.release_sweep_run)
+                        .bind(sweep.as_str())
+                        .bind(i64::from(index))
+                        .bind(owner)
+                        .execute(&mut *tx)
+                        .await
+                        .map_err(backend)?;
+                }
+                tx.commit().await.map_err(backend)
+            }
+
+            async fn cancel_sweep(
+                &self,
+                id: &$crate::jobs::JobId,
+                now_ms: u64,
+                message: &str,
+            ) -> Result<Option<$crate::jobs::SweepSummary>, $crate::jobs::StoreError> {
+                use $crate::jobs::store::sql::{backend, int};
+                let mut tx = self.pool.begin().await.map_err(backend)?;
+                let flagged = sqlx::query(&self.sql.flag_sweep_cancel)
+                    .bind(id.as_str())
+                    .execute(&mut *tx)
+                    .await
+                    .map_err(backend)?;
+                if flagged.rows_affected() == 0 {
+                    return Ok(None);
+                }
+                sqlx::query(&self.sql.cancel_sweep_runs_now)
+                    .bind(id.as_str())
+                    .bind(message)
+                    .bind(int(now_ms))
+                    .execute(&mut *tx)
+                    .await
+                    .map_err(backend)?;
+                sqlx::query(&self.sql.flag_sweep_runs_cancel)
+                    .bind(id.as_str())
+                    .execute(&mut *tx)
+                    .await
+                    .map_err(backend)?;
+                tx.commit().await.map_err(backend)?;
+                self.sweep(id).await
             }
         }
     };

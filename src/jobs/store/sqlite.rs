@@ -3,7 +3,7 @@
 //! Jobs and results survive a restart. The file is created on first open and migrated to the
 //! schema in `migrations/sqlite`. Only one instance may use a file: on open, every job left
 //! `running` belonged to a process that is gone, so its lease is lapsed at once and the job runs
-//! again from the start.
+//! again from the start; so does every sweep run left `running`.
 
 use std::path::Path;
 use std::str::FromStr;
@@ -39,10 +39,12 @@ impl SqliteStore {
             .run(&pool)
             .await
             .map_err(|e| StoreError::Backend(format!("cannot migrate the SQLite store: {e}")))?;
-        sqlx::query("UPDATE jobs SET lease_until_ms = 0 WHERE status = 'running'")
-            .execute(&pool)
-            .await
-            .map_err(backend)?;
+        for table in ["jobs", "sweep_runs"] {
+            sqlx::query(&format!("UPDATE {table} SET lease_until_ms = 0 WHERE status = 'running'"))
+                .execute(&pool)
+                .await
+                .map_err(backend)?;
+        }
         Ok(Self { pool, sql: Statements::new(Dialect::Sqlite) })
     }
 }

@@ -1,0 +1,160 @@
+//! A worker's turn at a sweep: it claims a batch of one sweep's runs, runs them one after
+//! another, stores each run's end as it comes, and goes back to the queue.
+//!
+//! The policy between sweeps and single jobs: a worker takes a queued job first, and only when
+//! none is queued a batch of runs of the oldest sweep with runs waiting. It starts no further run
+//! of the batch once [`BATCH_TIME`] has passed since the batch began, and puts the runs it did
+//! not start back in the queue. A worker's batches start at one run and double, up to
+//! [`BATCH_RUNS`], while each is done within [`BATCH_TIME`]: long runs are claimed one at a time,
+//! so the workers of every instance share them, and tiny ones many at a time. So a job queued while a sweep runs
+//! waits for at most one run plus [`BATCH_TIME`] for a worker, while a sweep's runs cost one
+//! claim per batch rather than a job each. Sweeps are served oldest first; a steady stream of
+//! single jobs delays them, never the reverse.
+//!
+//! A run keeps only what its table row needs: its status, why it failed, and its final positions
+//! and statistics as JSON. A run started more than `--max-attempts` times without ending is
+//! failed instead of run; a run of a cancelled sweep ends `cancelled`; at shutdown the runs of
+//! the batch not ended go back to the queue.
+
+use std::panic::{AssertUnwindSafe, catch_unwind};
+use std::sync::Arc;
+use std::sync::atomic::Ordering;
+use std::time::{Duration, Instant};
+
+use super::encode::encode_result;
+use super::live::{CANCELLED, SHUT_DOWN};
+use super::record::now_ms;
+use super::shared::Shared;
+use super::status::JobStatus;
+use super::store::{ClaimedRun, ClaimedRuns, RunEnd, StoreError, attempts_exhausted};
+use super::sweep_live::Batch;
+use crate::run::{Status, execute};
+use crate::sweep::Sweep;
+
+/// Runs a worker claims at once.
+pub(super) const BATCH_RUNS: u32 = 64;
+/// How long a worker keeps starting runs of one batch.
+pub(super) const BATCH_TIME: Duration = Duration::from_millis(200);
+
+/// Claims a batch of at most `size` runs of a sweep and runs it; returns the size of the next
+/// batch, or `None` if there were no runs to claim.
+pub(super) fn run_sweep_batch(shared: &Shared, size: u32) -> Result<Option<u32>, StoreError> {
+    let lease = shared.lease();
+    let claimed = shared.runtime.block_on(shared.store.claim_sweep_runs(&lease, now_ms(), size))?;
+    let Some(ClaimedRuns { sweep: id, runs }) = claimed else { return Ok(None) };
+    let mut next_size = size.saturating_mul(2).min(BATCH_RUNS);
+    let batch = Arc::new(Batch::new(id.clone()));
+    shared.batches().push(Arc::clone(&batch));
+    tracing::debug!(sweep = %id, runs = runs.len(), "sweep runs claimed");
+    let sweep = shared.sweep_blocking(&id);
+    let began = Instant::now();
+    for (done, run) in runs.iter().enumerate() {
+        let out_of_turn = done > 0 && began.elapsed() > BATCH_TIME;
+        if out_of_turn
+            || shared.stopped.load(Ordering::Relaxed)
+            || batch.shutting_down.load(Ordering::Relaxed)
+        {
+            release(shared, &batch, &runs[done..]);
+            next_size = 1;
+            break;
+        }
+        let end = match &sweep {
+            _ if run.cancel_requested || batch.cancelled.load(Ordering::Relaxed) => {
+                ended(run.index, JobStatus::Cancelled, Some(CANCELLED.into()), None)
+            }
+            _ if run.attempts > shared.config.max_attempts => ended(
+                run.index,
+                JobStatus::Failed,
+                Some(attempts_exhausted(shared.config.max_attempts)),
+                None,
+            ),
+            Ok(Some(sweep)) => run_one(shared, &batch, sweep, run.index),
+            Ok(None) => ended(run.index, JobStatus::Failed, Some(format!("sweep {id} is gone")), None),
+            Err(e) => ended(run.index, JobStatus::Failed, Some(e.to_string()), None),
+        };
+        let finished = matches!(end.status, JobStatus::Succeeded | JobStatus::Diverged);
+        if batch.shutting_down.load(Ordering::Relaxed) && !finished {
+            release(shared, &batch, &runs[done..]);
+            break;
+        }
+        match shared.runtime.block_on(shared.store.finish_sweep_run(&id, &shared.owner, end)) {
+            Ok(true) => {}
+            Ok(false) => {
+                tracing::warn!(sweep = %id, run = run.index, "lost the run's lease; its end here is not recorded")
+            }
+            Err(e) => {
+                tracing::error!(sweep = %id, run = run.index, error = %e, "cannot store the end of a sweep run; it runs again once its lease lapses")
+            }
+        }
+    }
+    if began.elapsed() > BATCH_TIME {
+        next_size = 1;
+    }
+    shared.batches().retain(|b| !Arc::ptr_eq(b, &batch));
+    shared.changed();
+    Ok(Some(next_size))
+}
+
+/// Puts runs not ended back in the queue.
+fn release(shared: &Shared, batch: &Batch, runs: &[ClaimedRun]) {
+    let indices: Vec<u32> = runs.iter().map(|run| run.index).collect();
+    if let Err(e) =
+        shared.runtime.block_on(shared.store.release_sweep_runs(&batch.sweep, &shared.owner, &indices))
+    {
+        tracing::error!(sweep = %batch.sweep, error = %e, "cannot put sweep runs back in the queue; they run again once their lease lapses");
+    }
+}
+
+fn ended(index: u32, status: JobStatus, message: Option<String>, result: Option<bytes::Bytes>) -> RunEnd {
+    RunEnd { index, status, message, result }
+}
+
+/// Runs one run of `sweep` (the reference is run 0 when there is one) and says how it ended.
+fn run_one(shared: &Shared, batch: &Batch, sweep: &Sweep, index: u32) -> RunEnd {
+    let scene = match (&sweep.reference, index) {
+        (Some(reference), 0) => Some(reference),
+        (Some(_), n) => sweep.variants.get(n as usize - 1).map(|v| &v.scene),
+        (None, n) => sweep.variants.get(n as usize).map(|v| &v.scene),
+    };
+    let Some(scene) = scene else {
+        return ended(index, JobStatus::Failed, Some(format!("the sweep has no run {index}")), None);
+    };
+    let control = batch.next_run();
+    let ran = catch_unwind(AssertUnwindSafe(|| {
+        let compiled = shared.config.limits.admit(scene).map_err(|errors| {
+            let reasons: Vec<String> = errors.iter().map(ToString::to_string).collect();
+            format!("the run exceeds this instance's limits: {}", reasons.join("; "))
+        })?;
+        let recording = execute(&compiled.compiled, &control);
+        // A sweep run's result is its final positions: quick to encode whatever stopped the run.
+        let encoded = encode_result(&recording, &compiled.compiled.output, &|| false)
+            .map_err(|e| format!("the result could not be encoded: {e}"))?;
+        Ok::<_, String>((recording.stats, encoded.bytes))
+    }));
+    let (stats, bytes) = match ran {
+        Ok(Ok(ran)) => ran,
+        Ok(Err(message)) => return ended(index, JobStatus::Failed, Some(message), None),
+        Err(_) => return ended(index, JobStatus::Failed, Some("the simulation panicked".into()), None),
+    };
+    match stats.status {
+        Status::Succeeded => ended(index, JobStatus::Succeeded, None, Some(bytes)),
+        Status::Diverged => {
+            let reason = stats.diverged.as_ref().map(|d| d.reason.clone());
+            ended(index, JobStatus::Diverged, reason, Some(bytes))
+        }
+        Status::Cancelled if batch.timed_out.load(Ordering::Relaxed) => ended(
+            index,
+            JobStatus::Failed,
+            Some(format!(
+                "the run exceeded the wall-time limit of {} s",
+                shared.config.wall_time.as_secs_f64()
+            )),
+            None,
+        ),
+        Status::Cancelled if batch.shutting_down.load(Ordering::Relaxed) => {
+            ended(index, JobStatus::Cancelled, Some(SHUT_DOWN.into()), None)
+        }
+        Status::Cancelled => ended(index, JobStatus::Cancelled, Some(CANCELLED.into()), Some(bytes)),
+        Status::Failed => ended(index, JobStatus::Failed, stats.failure.clone(), None),
+    }
+}
