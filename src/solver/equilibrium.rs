@@ -32,6 +32,10 @@ const CONTACT_GAP: f64 = 1e-6;
 /// The linear solve stops when its residual is this fraction of `|r|`.
 const TOLERANCE: f64 = 1e-8;
 
+/// The linear solve stops after at most this many iterations (three per particle below it), so
+/// that the estimate costs a bounded fraction of a run on the largest cloths.
+const MAX_ITERATIONS: usize = 2000;
+
 /// How far a state is from static equilibrium.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Equilibrium {
@@ -172,7 +176,7 @@ impl<'a> Stiffness<'a> {
         let mut product = vec![Vec3::ZERO; n];
         let mut q = vec![DVec3::ZERO; n];
         let mut rz = dot(&r, &z);
-        let max_iterations = (3 * n).clamp(100, 20_000);
+        let max_iterations = (3 * n).clamp(100, MAX_ITERATIONS);
         let mut iterations = 0;
         while dot(&r, &r).sqrt() > target && iterations < max_iterations {
             self.apply(&search, &mut product);
