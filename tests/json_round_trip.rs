@@ -49,6 +49,16 @@ fn writing_what_was_read_gives_the_same_bytes() {
 }
 
 #[test]
+fn a_run_at_rest_reads_back_its_distance_from_equilibrium() {
+    let scene = &scenes()[5];
+    let recording = run(scene);
+    let equilibrium = recording.stats.error.as_ref().and_then(|e| e.equilibrium);
+    assert!(equilibrium.is_some_and(|q| q.residual_relative.is_some()), "{scene}");
+    let read = read_json(&json(&recording)).unwrap();
+    assert_eq!(read.stats.error.and_then(|e| e.equilibrium), equilibrium);
+}
+
+#[test]
 fn every_format_encodes_the_same_from_the_json_as_from_the_run() {
     let scene = format!(
         r#"{{"duration": 0.1, "dt": 0.001, "precision": "f32", "bodies": [{CLOTH}], "output": {{"fps": 30}}}}"#

@@ -262,6 +262,17 @@ impl Serialize for StatsView<'_> {
                 }
                 EstimateOutcome::Unavailable { reason } => error["unavailable"] = reason.as_str().into(),
             }
+            if let Some(q) = &e.equilibrium {
+                let mut equilibrium = serde_json::json!({
+                    "residual_force": q.residual_force,
+                    "displacement_max": q.displacement_max, "displacement_rms": q.displacement_rms,
+                    "iterations": q.iterations,
+                });
+                if let Some(relative) = q.residual_relative {
+                    equilibrium["residual_relative"] = relative.into();
+                }
+                error["equilibrium"] = equilibrium;
+            }
             map.serialize_entry("error", &error)?;
         }
         map.end()

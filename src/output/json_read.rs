@@ -20,7 +20,7 @@ use crate::run::{
     Recording, RigidTransform, Samples, Stats, Status,
 };
 use crate::scene::{BodyInfo, DtSource, ErrorEstimateName, FrameSelection, Precision};
-use crate::solver::{Energy, IntegratorKind, LinearSolveStats, STAGE_NAMES};
+use crate::solver::{Energy, Equilibrium, IntegratorKind, LinearSolveStats, STAGE_NAMES};
 
 /// Why bytes are not a JSON result drape wrote.
 #[derive(Debug, Error)]
@@ -367,5 +367,18 @@ fn read_error(e: &Value) -> Result<ErrorEstimate, ReadError> {
             &e["companion_step"],
             &[("doubled", CompanionStep::Doubled), ("halved", CompanionStep::Halved)],
         )?,
+        equilibrium: optional(e.get("equilibrium"), read_equilibrium)?,
+    })
+}
+
+fn read_equilibrium(q: &Value) -> Result<Equilibrium, ReadError> {
+    Ok(Equilibrium {
+        residual_force: number("stats.error.equilibrium.residual_force", &q["residual_force"])?,
+        residual_relative: optional(q.get("residual_relative"), |v| {
+            number("stats.error.equilibrium.residual_relative", v)
+        })?,
+        displacement_max: number("stats.error.equilibrium.displacement_max", &q["displacement_max"])?,
+        displacement_rms: number("stats.error.equilibrium.displacement_rms", &q["displacement_rms"])?,
+        iterations: count("stats.error.equilibrium.iterations", &q["iterations"])? as usize,
     })
 }

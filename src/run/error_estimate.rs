@@ -32,7 +32,7 @@ use glam::DVec3;
 
 use super::{Control, Outcome, Recording, Status, simulate};
 use crate::scene::{Compiled, ErrorEstimateName};
-use crate::solver::{IntegratorKind, stable_step};
+use crate::solver::{Equilibrium, IntegratorKind, equilibrium, stable_step};
 
 /// The error estimate of a run.
 #[derive(Clone, Debug, PartialEq)]
@@ -47,6 +47,8 @@ pub struct ErrorEstimate {
     pub extra_wall_time_s: f64,
     /// Whether the companions took larger or smaller steps than the run.
     pub companion_step: CompanionStep,
+    /// For a run that stopped at rest: how far its final state is from static equilibrium.
+    pub equilibrium: Option<Equilibrium>,
 }
 
 /// The companions' step against the run's own `h`.
@@ -150,7 +152,10 @@ pub(super) fn execute_with_estimate(
     let Outcome { mut recording, final_positions } = main;
     if let Some(fine) = final_positions {
         let h = recording.stats.dt;
-        recording.stats.error = Some(estimate(compiled, method, &fine, h, &companions, spacing));
+        let mut error = estimate(compiled, method, &fine, h, &companions, spacing);
+        error.equilibrium =
+            recording.stats.stopped_at_rest.map(|t| equilibrium(&compiled.model, &compiled.config, &fine, t));
+        recording.stats.error = Some(error);
     }
     recording
 }
@@ -295,7 +300,7 @@ fn estimate(
             EstimateOutcome::Estimate { max, rms: rms_difference * scale, observed_order, reliable }
         }
     };
-    ErrorEstimate { method, order, outcome, extra_wall_time_s, companion_step }
+    ErrorEstimate { method, order, outcome, extra_wall_time_s, companion_step, equilibrium: None }
 }
 
 fn root_mean_square(values: &[f64]) -> f64 {

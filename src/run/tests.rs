@@ -520,3 +520,73 @@ fn a_moving_collider_carries_its_transform_at_every_frame() {
     assert_eq!(frames[4].translation, [2.0, 0.0, 0.0]);
     assert!(r.stats.stages.contains(&"moving_colliders"), "{:?}", r.stats.stages);
 }
+
+/// The equilibrium part of a run's error estimate.
+fn equilibrium_of(r: &Recording) -> crate::solver::Equilibrium {
+    r.stats.error.as_ref().and_then(|e| e.equilibrium).expect("a run at rest reports its equilibrium")
+}
+
+#[test]
+fn a_hanging_chain_stopped_before_equilibrium_knows_how_far_it_is() {
+    // Eleven particles of 0.01 kg hung from the first, links k = 50 N/m: at equilibrium the link
+    // above particle j carries the weight of the n - j particles from j down, so it is stretched
+    // by (n - j) m g / k. Stopped at rest with a loose threshold the chain is still a little off
+    // that shape; the displacement the estimate predicts is the distance to it.
+    let (n, mass, k, g) = (11usize, 0.11, 50.0, 9.81);
+    let r = run(json!({"duration": 20.0, "dt": 0.01, "integrator": "implicit_euler", "stop_at_rest": 0.02,
+        "bodies": [{"type": "chain", "start": [0, 0, 0], "end": [0, -1, 0], "count": n, "pin": [0],
+                    "mass": mass, "spring": {"k": k, "damping": 0.05}}],
+        "output": {"frames": "final"}}));
+    assert!(r.stats.stopped_at_rest.is_some());
+    let m = mass / n as f64;
+    let mut exact = vec![0.0; n];
+    for j in 1..n {
+        exact[j] = exact[j - 1] - (0.1 + (n - j) as f64 * m * g / k);
+    }
+    let last = last_positions(&r);
+    let distance = (0..n)
+        .map(|j| {
+            ((last[3 * j + 1] - exact[j]).powi(2) + last[3 * j].powi(2) + last[3 * j + 2].powi(2)).sqrt()
+        })
+        .fold(0.0, f64::max);
+    let q = equilibrium_of(&r);
+    // The chain hangs straight and its links are linear springs: the system is linear along the
+    // chain, so one solve with the stiffness lands on the static solution.
+    assert!(distance > 1e-5, "the run stopped {distance} m from equilibrium: too close to test");
+    let ratio = q.displacement_max / distance;
+    assert!((ratio - 1.0).abs() < 1e-3, "predicted {} m, true {distance} m", q.displacement_max);
+    // The residual is the stretch still missing times k, on a particle of weight m g.
+    let relative = q.residual_relative.unwrap();
+    assert!(relative > 0.0 && relative < 0.01 * 2.0, "{q:?}");
+}
+
+/// The largest distance between two runs' final particles.
+fn final_separation(a: &Recording, b: &Recording) -> f64 {
+    let (a, b) = (last_positions(a), last_positions(b));
+    a.chunks(3)
+        .zip(b.chunks(3))
+        .map(|(p, q)| (0..3).map(|i| (p[i] - q[i]).powi(2)).sum::<f64>().sqrt())
+        .fold(0.0, f64::max)
+}
+
+#[test]
+fn a_hanging_cloth_stopped_early_predicts_its_distance_from_the_settled_shape() {
+    // Hanging from two corners, stopped at rest loosely and tightly: the tight run's own estimate
+    // shows it settled to within a small fraction of the loose run's distance, and the loose
+    // run's predicted displacement is that distance within a factor 1.5 (the sag is not linear
+    // in the positions, and the stiffness is taken at the loose run's state).
+    let scene = |stop: f64| {
+        json!({"duration": 60.0, "dt": 0.01, "integrator": "implicit_euler", "drag": 1.0,
+            "stop_at_rest": stop, "bodies": [{"type": "cloth", "resolution": [9, 9], "pin": [[0, 0], [8, 0]],
+            "orientation": "vertical", "springs": {"structural": {"k": 500, "damping": 0.5},
+            "shear": {"k": 50, "damping": 0.05}, "bending": {"k": 5, "damping": 0.01}}}],
+            "output": {"frames": "final"}})
+    };
+    let loose = run(scene(0.02));
+    let tight = run(scene(1e-6));
+    let (q_loose, q_tight) = (equilibrium_of(&loose), equilibrium_of(&tight));
+    let distance = final_separation(&loose, &tight);
+    assert!(q_tight.displacement_max < 0.01 * distance, "{q_tight:?} against {distance} m");
+    let ratio = q_loose.displacement_max / distance;
+    assert!((1.0 / 1.5..1.5).contains(&ratio), "predicted {} m, true {distance} m", q_loose.displacement_max);
+}

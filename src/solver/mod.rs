@@ -11,6 +11,7 @@ mod bodies;
 mod constraints;
 mod diagnostics;
 mod disk;
+mod equilibrium;
 mod fabric;
 mod forces;
 mod integrators;
@@ -35,6 +36,7 @@ pub use constraints::contacts::{
 pub use constraints::self_collision::{PairCapReached, SelfCollision, candidate_pairs};
 pub use diagnostics::Energy;
 pub use disk::{Disk, disk_index, disk_layout, disk_particle_count, disk_ring_size};
+pub use equilibrium::{Equilibrium, equilibrium};
 pub use fabric::Fabric;
 pub use forces::bending::isometric_hinges;
 pub use forces::dynamics::Dynamics;

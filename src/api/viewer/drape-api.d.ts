@@ -1099,6 +1099,15 @@ export interface components {
                 /** @description Why there is no estimate (a halved companion diverged too, or the run was cancelled). */
                 unavailable?: string;
                 extra_wall_time_s: number;
+                /** @description With a run that stopped at rest: how far its final state is from static equilibrium. The residual is the net static force (springs, bending, gravity, wind) on each particle that is neither pinned nor lying on a collider; the displacement solves K dx = r once with the stiffness K of the springs and bending, those particles held, and is the distance to the static shape to first order. residual_force is the largest residual in newtons, residual_relative the largest over the particle's weight m g (absent without gravity), displacement_max and displacement_rms in metres. */
+                equilibrium?: {
+                    residual_force: components["schemas"]["Measure"];
+                    residual_relative?: components["schemas"]["Measure"];
+                    displacement_max: components["schemas"]["Measure"];
+                    displacement_rms: components["schemas"]["Measure"];
+                    /** @description Conjugate-gradient iterations of the solve. */
+                    iterations: number;
+                };
             };
             linear_solver?: {
                 tolerance?: number;
