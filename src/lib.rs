@@ -15,6 +15,8 @@
 //! - [`assets`]: mesh files (OBJ, GLB) read into vertices and triangles, their stored form, and
 //!   the references a scene makes to them.
 //! - [`api`]: the HTTP API over [`jobs`]: routes, problem+json errors, limits, OpenAPI.
+//! - [`client`]: the command line as a client of a drape server (`--server URL`): the HTTP
+//!   calls, the server's problems printed field by field, and the exit codes.
 //! - [`config`] and [`server`]: the settings of `drape serve` and the server's life.
 //! - [`progress`]: the progress bar `drape run` and `drape sweep` draw on a terminal.
 //!
@@ -23,6 +25,7 @@
 
 pub mod api;
 pub mod assets;
+pub mod client;
 pub mod config;
 pub mod jobs;
 pub mod output;

@@ -1,4 +1,5 @@
-//! The `drape` command: serve the HTTP API, or run a scene or a sweep from the shell.
+//! The `drape` command: serve the HTTP API, or run a scene or a sweep from the shell, here or,
+//! with `--server`, on a drape server.
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -8,6 +9,7 @@ use std::sync::atomic::AtomicUsize;
 use clap::{Parser, Subcommand};
 
 use drape::assets::{has_references, resolve_files};
+use drape::client::{ClientArgs, Exit};
 use drape::config::LimitArgs;
 use drape::jobs::{admit_for_table, sweep_over_limit};
 use drape::output::{Format, encode};
@@ -29,6 +31,11 @@ enum Command {
     /// Serves the HTTP API (see /openapi.json) until SIGINT or SIGTERM.
     Serve(Box<drape::config::Config>),
     /// Runs a scene and prints its JSON result (or writes it to a file).
+    ///
+    /// With --server the scene runs there and its result is written here the same way; the exit
+    /// status is then 0 succeeded, 1 the run failed or diverged (its result is still written),
+    /// 2 a bad scene (the server's problem printed field by field), 3 the server could not be
+    /// reached or refused the work.
     Run {
         /// The scene, as a JSON file (`-` reads standard input).
         scene: PathBuf,
@@ -47,8 +54,13 @@ enum Command {
         /// run's alone).
         #[command(flatten)]
         limits: LimitArgs,
+        #[command(flatten)]
+        client: ClientArgs,
     },
     /// Runs every variant of a sweep and prints its table (JSON, or CSV with --csv).
+    ///
+    /// With --server the sweep runs there; the exit status is then 0, 1 a threshold crossed,
+    /// 2 a bad sweep, 3 the server could not be reached or refused the work.
     Sweep {
         /// The sweep, as a JSON file (`-` reads standard input).
         sweep: PathBuf,
@@ -79,16 +91,96 @@ enum Command {
         /// shared by the runs at once).
         #[command(flatten)]
         limits: LimitArgs,
+        #[command(flatten)]
+        client: ClientArgs,
+    },
+    /// Queues a scene on a server (--server or DRAPE_SERVER) and prints the job as JSON (its id,
+    /// status and links) without waiting; with --wait, follows it and writes its result as
+    /// `drape run --server` does. Exit status: 0 queued (or succeeded), 1 the run failed or
+    /// diverged, 2 a bad scene, 3 the server could not be reached or refused the work.
+    Submit {
+        /// The scene, as a JSON file (`-` reads standard input).
+        scene: PathBuf,
+        /// Wait for the run and write its result (as `drape run --server`).
+        #[arg(long)]
+        wait: bool,
+        /// With --wait: write the result here instead of standard output.
+        #[arg(short, long, requires = "wait")]
+        output: Option<PathBuf>,
+        /// Store the result in this format (json, glb, obj, npy, npz or pc2) instead of the
+        /// scene's `output.format`.
+        #[arg(short, long)]
+        format: Option<Format>,
+        /// Draw no progress bar while waiting.
+        #[arg(short, long)]
+        quiet: bool,
+        /// The limits a mesh file the scene names must fit.
+        #[command(flatten)]
+        limits: LimitArgs,
+        #[command(flatten)]
+        client: ClientArgs,
     },
 }
 
 fn main() -> ExitCode {
     match Cli::parse().command {
         Command::Serve(config) => serve(*config),
-        Command::Run { scene, output, format, quiet, limits } => {
-            run(&scene, output.as_deref(), format, progress::wanted(quiet), &limits)
+        Command::Run { scene, output, format, quiet, limits, client } => match client.server() {
+            Some(server) => {
+                let options = drape::client::RunOptions {
+                    output: output.as_deref(),
+                    format,
+                    progress: progress::wanted(quiet),
+                };
+                remote(&scene, None, &limits, |name, text| {
+                    drape::client::run(&server, name, text, &options, client.idempotency_key.as_deref())
+                })
+            }
+            None => run(&scene, output.as_deref(), format, progress::wanted(quiet), &limits),
+        },
+        Command::Submit { scene, wait, output, format, quiet, limits, client } => {
+            let Some(server) = client.server() else {
+                eprintln!("drape: submit needs a server: --server URL or DRAPE_SERVER");
+                return Exit::BadInput.into();
+            };
+            let key = client.idempotency_key.as_deref();
+            remote(&scene, None, &limits, |name, text| {
+                if wait {
+                    let options = drape::client::RunOptions {
+                        output: output.as_deref(),
+                        format,
+                        progress: progress::wanted(quiet),
+                    };
+                    drape::client::run(&server, name, text, &options, key)
+                } else {
+                    drape::client::submit(&server, text, format, key)
+                }
+            })
         }
-        Command::Sweep { sweep, csv, plot, threads, max_variants, quiet, max_error, min_order, limits } => {
+        Command::Sweep {
+            sweep,
+            csv,
+            plot,
+            threads,
+            max_variants,
+            quiet,
+            max_error,
+            min_order,
+            limits,
+            client,
+        } => {
+            let thresholds = Thresholds { max_error, min_order };
+            if let Some(server) = client.server() {
+                let options = drape::client::SweepOptions {
+                    csv,
+                    plot: plot.as_deref(),
+                    progress: progress::wanted(quiet),
+                    thresholds,
+                };
+                return remote(&sweep, Some("scene"), &limits, |name, text| {
+                    drape::client::sweep(&server, name, text, &options, client.idempotency_key.as_deref())
+                });
+            }
             let threads =
                 threads.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
             let options = SweepOptions {
@@ -97,7 +189,7 @@ fn main() -> ExitCode {
                 threads,
                 max_variants,
                 progress: progress::wanted(quiet),
-                thresholds: Thresholds { max_error, min_order },
+                thresholds,
             };
             run_sweep(&sweep, options, &limits)
         }
@@ -127,6 +219,21 @@ fn serve(config: drape::config::Config) -> ExitCode {
             eprintln!("drape: cannot serve on {addr}: {e}");
             ExitCode::FAILURE
         }
+    }
+}
+
+/// Sends the scene (or sweep, whose base scene is under `member`) in the file at `path` to a
+/// server through `send`, with its mesh files read and put in place here, since the server reads
+/// no paths.
+fn remote(
+    path: &Path,
+    member: Option<&str>,
+    limits: &LimitArgs,
+    send: impl FnOnce(&str, Vec<u8>) -> Exit,
+) -> ExitCode {
+    match read_input(path).and_then(|text| with_mesh_files(text, path, member, limits)) {
+        Ok(text) => send(&path.display().to_string(), text).into(),
+        Err(code) => code,
     }
 }
 

@@ -1,10 +1,11 @@
-//! What `drape run` and `drape sweep` show on standard error while they work: a progress bar
-//! (steps or runs done, simulated time, rate, time left). It is drawn only when standard error is
-//! a terminal and the caller did not ask for quiet, so logs, pipes and CI output stay clean.
+//! What `drape run` and `drape sweep` show on standard error while they work, here or on a
+//! server: a progress bar (steps or runs done, simulated time, rate, time left). It is drawn only
+//! when standard error is a terminal and the caller did not ask for quiet, so logs, pipes and CI
+//! output stay clean.
 //!
 //! The work runs on a scoped thread while this thread redraws the bar from the counters the work
-//! publishes ([`Control::steps_done`] for a run, a count of ended runs for a sweep), so the bar
-//! costs the work nothing.
+//! publishes ([`Control::steps_done`] for a run, a count of ended runs for a sweep, the last
+//! event of a job on a server), so the bar costs the work nothing.
 
 use std::io::IsTerminal;
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -31,13 +32,32 @@ pub fn follow_run<R: Send>(
     dt: f64,
     work: impl FnOnce() -> R + Send,
 ) -> R {
+    follow_steps(
+        show,
+        steps,
+        || {
+            let done = control.steps_done();
+            (done, done as f64 * dt)
+        },
+        work,
+    )
+}
+
+/// Runs `work`, a run of `steps` steps whose steps done and simulated time `read` gives (a run
+/// on a server, followed through its events), and, if `show`, draws its progress until it returns.
+pub fn follow_steps<R: Send>(
+    show: bool,
+    steps: u64,
+    read: impl Fn() -> (u64, f64),
+    work: impl FnOnce() -> R + Send,
+) -> R {
     follow(
         show,
         steps,
         "{bar:30} {pos}/{len} steps  t = {msg}  {per_sec}  {eta} left",
         || {
-            let done = control.steps_done();
-            (done, format!("{:.3} s", done as f64 * dt))
+            let (done, t) = read();
+            (done, format!("{t:.3} s"))
         },
         work,
     )

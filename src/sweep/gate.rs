@@ -24,12 +24,18 @@ impl Thresholds {
     /// Why these thresholds cannot be applied to `sweep`, before it runs: a bound that is not a
     /// positive finite number, or `--min-order` on a sweep that yields no convergence order.
     pub fn check(&self, sweep: &Sweep) -> Result<(), String> {
+        self.check_for(&sweep.pointers, sweep.reference.is_some())
+    }
+
+    /// [`Thresholds::check`] for a sweep that varies `pointers` and has a reference or not
+    /// (what a client knows of a sweep it sends to a server).
+    pub fn check_for(&self, pointers: &[String], has_reference: bool) -> Result<(), String> {
         for (flag, value) in [("--max-error", self.max_error), ("--min-order", self.min_order)] {
             if let Some(v) = value.filter(|v| !(v.is_finite() && *v > 0.0)) {
                 return Err(format!("{flag} must be a positive number, got {v}"));
             }
         }
-        let orders = sweep.reference.is_some() && sweep.pointers.iter().any(|p| p == "/dt");
+        let orders = has_reference && pointers.iter().any(|p| p == "/dt");
         if self.min_order.is_some() && !orders {
             return Err("--min-order needs a sweep that varies /dt and has a reference".into());
         }

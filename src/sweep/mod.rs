@@ -14,6 +14,7 @@ mod gate;
 mod local;
 mod plot;
 mod table;
+mod table_read;
 
 use serde_json::Value;
 use thiserror::Error;

@@ -183,3 +183,20 @@ fn thresholds_that_cannot_apply_are_refused_before_the_sweep_runs() {
     let negative = Thresholds { max_error: Some(-1.0), min_order: None };
     assert_eq!(negative.check(&no_reference), Err("--max-error must be a positive number, got -1".into()));
 }
+
+#[test]
+fn a_table_reads_back_from_its_json_exactly() {
+    let table = order_sweep();
+    assert!(table.rows.iter().all(|r| r.energy.is_some() && r.reference_error.is_some()));
+    assert_eq!(Table::from_json(&table.to_json()).unwrap(), table);
+    // A row still queued has no step (NaN, left out of the JSON), which reads back as NaN.
+    let mut pending = table.clone();
+    pending.rows[0] = Row::without_result(pending.rows[0].values.clone(), "rk4", "queued", None);
+    let read = Table::from_json(&pending.to_json()).unwrap();
+    assert!(read.rows[0].dt.is_nan());
+    assert_eq!(read.to_json(), pending.to_json());
+    assert_eq!(read.rows[1..], pending.rows[1..]);
+    let mut broken = table.to_json();
+    broken["rows"][2]["steps"] = json!("many");
+    assert_eq!(Table::from_json(&broken).unwrap_err(), "/rows/2/steps is not a whole number");
+}
