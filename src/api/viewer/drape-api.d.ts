@@ -741,7 +741,7 @@ export interface components {
              * @default 0.0001
              */
             damping: number;
-        } | unknown | unknown;
+        };
         /**
          * @description How the body resists bending: `dihedral`, by bending elements of the material's rigidity (the default, and the only choice, with `material`), or `springs`, by springs two apart (the default, and the only choice, without).
          * @enum {string}
