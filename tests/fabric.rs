@@ -1,10 +1,11 @@
 //! Fabrics in physical units: the bending elements' energy against the closed form of a bent
 //! sheet, the membrane's stress under uniaxial stretch, the convergence of a drape with the
-//! resolution, the cantilever against the heavy elastica, and zero-length springs.
+//! resolution, the cantilever against the heavy elastica, zero-length springs, and the named
+//! presets a material can be given by.
 
 mod elastica;
 
-use drape::scene::Scene;
+use drape::scene::{Body, DEFAULT_DAMPING_TIME, FABRIC_PRESETS, FabricSpec, Scene};
 use drape::solver::{
     Chain, Cloth, Config, Dynamics, Fabric, IntegratorKind, Model, Orientation, Simulation, SpringParams,
     Vectors,
@@ -430,4 +431,68 @@ fn a_mesh_whose_material_would_overflow_on_its_slivers_is_refused() {
     // The short edge's k = (8/9) S A / |e|² = (8/9) S 0.5 / 1e-12.
     assert_eq!(problems(&text(1e3)), Vec::<String>::new());
     assert_eq!(problems(&text(1e20)), ["/bodies/0/material"]);
+}
+
+/// The material of the first body of a scene whose cloth has `material`, or the scene's problems
+/// as `pointer: detail`.
+fn material_of(material: &str) -> Result<FabricSpec, Vec<String>> {
+    match Scene::from_json(cloth_with(&format!(r#", "material": {material}"#)).as_bytes()) {
+        Ok(scene) => match &scene.bodies[0] {
+            Body::Cloth(cloth) => Ok(cloth.material.expect("a material")),
+            _ => panic!("a cloth"),
+        },
+        Err(e) => Err(e.field_errors().iter().map(|f| format!("{}: {}", f.pointer, f.detail)).collect()),
+    }
+}
+
+#[test]
+fn a_material_is_a_preset_by_name_or_a_preset_with_values_replaced() {
+    assert!(FABRIC_PRESETS.len() >= 5);
+    for (name, preset) in FABRIC_PRESETS {
+        // Every preset is a valid material, with the default damping.
+        assert_eq!(material_of(&format!(r#""{name}""#)), Ok(preset), "{name}");
+        assert_eq!(material_of(&format!(r#"{{"preset": "{name}"}}"#)), Ok(preset), "{name}");
+        assert!(preset.shear < preset.stretch && preset.damping == DEFAULT_DAMPING_TIME, "{name}");
+        // A field beside the preset replaces the preset's value and only it.
+        let damped = material_of(&format!(r#"{{"preset": "{name}", "damping": 0.002}}"#));
+        assert_eq!(damped, Ok(FabricSpec { damping: 0.002, ..preset }), "{name}");
+        let heavier = material_of(&format!(r#"{{"preset": "{name}", "density": 1.5}}"#));
+        assert_eq!(heavier, Ok(FabricSpec { density: 1.5, ..preset }), "{name}");
+    }
+    for required in ["cotton", "denim", "silk", "wool", "polyester"] {
+        assert!(FABRIC_PRESETS.iter().any(|(name, _)| *name == required), "{required}");
+    }
+    // An unknown name is refused at the material, with every known name in the reason.
+    let refused = material_of(r#""linen""#).unwrap_err();
+    assert_eq!(refused.len(), 1);
+    assert!(refused[0].starts_with("/bodies/0/material: unknown preset `linen`"), "{refused:?}");
+    for (name, _) in FABRIC_PRESETS {
+        assert!(refused[0].contains(&format!("`{name}`")), "{name} in {refused:?}");
+    }
+    assert!(material_of(r#"{"preset": "linen", "damping": 0}"#).unwrap_err()[0].contains("`denim`"));
+    // Without a preset every value but the damping is needed; a replaced value is checked.
+    let missing = material_of(r#"{"stretch": 1000, "shear": 50, "bending": 1e-5}"#).unwrap_err();
+    assert!(missing[0].starts_with("/bodies/0/material/density: missing field"), "{missing:?}");
+    let negative = material_of(r#"{"preset": "silk", "bending": -1}"#).unwrap_err();
+    assert_eq!(negative.len(), 1);
+    assert!(negative[0].starts_with("/bodies/0/material/bending"), "{negative:?}");
+    assert!(material_of("3").unwrap_err()[0].contains("preset"));
+}
+
+#[test]
+fn a_preset_drapes_the_same_by_name_as_by_its_values() {
+    let (_, denim) = FABRIC_PRESETS.iter().find(|(name, _)| *name == "denim").expect("denim");
+    let by_values = format!(
+        r#"{{"density": {}, "stretch": {}, "shear": {}, "bending": {}}}"#,
+        denim.density, denim.stretch, denim.shear, denim.bending
+    );
+    let compile = |material: &str| {
+        Scene::from_json(cloth_with(&format!(r#", "material": {material}"#)).as_bytes())
+            .expect("valid")
+            .compile()
+    };
+    let (named, valued) = (compile(r#""denim""#), compile(&by_values));
+    assert_eq!(named.model.masses, valued.model.masses);
+    assert_eq!(named.model.springs, valued.model.springs);
+    assert_eq!(named.model.bending, valued.model.bending);
 }

@@ -1,13 +1,19 @@
 //! A body's `material`: a fabric in physical units (`docs/materials.md` has the units and how
-//! they become a body's springs, bending elements and masses).
+//! they become a body's springs, bending elements and masses), given by its values, by a
+//! preset's name, or by a preset with some values replaced.
+
+use std::fmt;
 
 use serde::Deserialize;
+use serde::de::{self, Deserializer, MapAccess, Visitor, value::MapAccessDeserializer};
 
+use super::fabric_presets;
 use crate::solver::Fabric;
 
-/// A fabric in physical units, as the JSON spells it.
-#[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
-#[serde(deny_unknown_fields)]
+/// A fabric in physical units. The JSON gives it as an object of its values, as a preset's name
+/// (`"denim"`), or as an object naming a `preset` whose values any field beside it replaces
+/// (`{"preset": "denim", "damping": 1e-3}`).
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct FabricSpec {
     /// Mass per area, in kg/m² (positive).
     pub density: f64,
@@ -19,8 +25,71 @@ pub struct FabricSpec {
     pub bending: f64,
     /// Damping time constant, in seconds: each element's damping is this times its stiffness
     /// (at least 0; default [`DEFAULT_DAMPING_TIME`]).
-    #[serde(default = "default_damping_time")]
     pub damping: f64,
+}
+
+/// A `material` object as written: a preset and the values that replace its, or all values.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct MaterialFields {
+    preset: Option<String>,
+    density: Option<f64>,
+    stretch: Option<f64>,
+    shear: Option<f64>,
+    bending: Option<f64>,
+    damping: Option<f64>,
+}
+
+impl MaterialFields {
+    /// The fabric: the preset's values, each replaced by the one given beside it, or without a
+    /// preset the values given (all but the damping needed).
+    fn fabric(self) -> Result<FabricSpec, String> {
+        let base = self.preset.as_deref().map(preset).transpose()?;
+        let value = |given: Option<f64>, of_base: fn(&FabricSpec) -> f64, name: &str| {
+            given
+                .or(base.as_ref().map(of_base))
+                .ok_or_else(|| format!("missing field `{name}`: give it, or a `preset` to take it from"))
+        };
+        Ok(FabricSpec {
+            density: value(self.density, |f| f.density, "density")?,
+            stretch: value(self.stretch, |f| f.stretch, "stretch")?,
+            shear: value(self.shear, |f| f.shear, "shear")?,
+            bending: value(self.bending, |f| f.bending, "bending")?,
+            damping: self.damping.or(base.map(|f| f.damping)).unwrap_or(DEFAULT_DAMPING_TIME),
+        })
+    }
+}
+
+impl<'de> Deserialize<'de> for FabricSpec {
+    fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        deserializer.deserialize_any(MaterialVisitor)
+    }
+}
+
+/// Reads a preset's name or an object; the object's fields are read as a struct of their own,
+/// so that an unknown or mistyped field is named by its own pointer.
+struct MaterialVisitor;
+
+impl<'de> Visitor<'de> for MaterialVisitor {
+    type Value = FabricSpec;
+
+    fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+        write!(f, "a preset's name ({}) or an object", fabric_presets::names())
+    }
+
+    fn visit_str<E: de::Error>(self, name: &str) -> Result<FabricSpec, E> {
+        preset(name).map_err(E::custom)
+    }
+
+    fn visit_map<A: MapAccess<'de>>(self, map: A) -> Result<FabricSpec, A::Error> {
+        let fields = MaterialFields::deserialize(MapAccessDeserializer::new(map))?;
+        fields.fabric().map_err(de::Error::custom)
+    }
+}
+
+fn preset(name: &str) -> Result<FabricSpec, String> {
+    fabric_presets::find(name)
+        .ok_or_else(|| format!("unknown preset `{name}`: expected {}", fabric_presets::names()))
 }
 
 /// The damping time constant a material has unless it says otherwise, in seconds. It damps a
@@ -28,10 +97,6 @@ pub struct FabricSpec {
 /// within a few of their periods, a drape's slow swings hardly at all. Larger values also shorten
 /// the step the explicit integrators can take, which the damping of the fastest mode bounds.
 pub const DEFAULT_DAMPING_TIME: f64 = 1e-4;
-
-fn default_damping_time() -> f64 {
-    DEFAULT_DAMPING_TIME
-}
 
 impl FabricSpec {
     /// The solver's fabric.

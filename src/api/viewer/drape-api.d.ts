@@ -746,16 +746,24 @@ export interface components {
              */
             bending: components["schemas"]["SpringSpec"];
         };
-        /** @description A fabric in physical units, in place of `springs` and `mass` (either beside it is refused with 422): the body's mass is `density` times its area, its springs and bending elements follow from the values and the rest shape (`docs/materials.md`). `shear` must be below `stretch`. */
-        Material: {
+        /** @description A fabric in physical units, in place of `springs` and `mass` (either beside it is refused with 422): a preset's name, an object of values, or an object naming a `preset` whose values the fields beside it replace (`docs/materials.md` has the presets and their sources). An unknown preset is refused with 422, its reason listing the known names. */
+        Material: components["schemas"]["MaterialPreset"] | components["schemas"]["MaterialValues"];
+        /**
+         * @description A named fabric; cotton, denim and polyester from published measurements.
+         * @enum {string}
+         */
+        MaterialPreset: "cotton" | "denim" | "polyester" | "silk" | "wool";
+        /** @description The body's mass is `density` times its area, its springs and bending elements follow from the values and the rest shape (`docs/materials.md`). `shear` must be below `stretch`. Without `preset`, `density`, `stretch`, `shear` and `bending` are required. */
+        MaterialValues: {
+            preset?: components["schemas"]["MaterialPreset"];
             /** @description Mass per area, in kg/m². */
-            density: number;
+            density?: number;
             /** @description Membrane stiffness in uniaxial stretch with the other direction held, in N/m. */
-            stretch: number;
+            stretch?: number;
             /** @description Membrane shear stiffness, in N/m (below `stretch`). */
-            shear: number;
+            shear?: number;
             /** @description Bending rigidity per unit width, in N·m. */
-            bending: number;
+            bending?: number;
             /**
              * @description Damping time constant, in s: every element's damping is this times its stiffness.
              * @default 0.0001
