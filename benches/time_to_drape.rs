@@ -1,0 +1,118 @@
+//! Time to drape: how long a user waits for implicit Euler to bring a cloth to rest on a shape.
+//!
+//! ```sh
+//! cargo bench --bench time_to_drape [-- RUNS]
+//! ```
+//!
+//! Two scenes, each stepped at the frame interval (1/60 s) from release until every particle is
+//! slower than 5 mm/s after the motion has begun, or to 5 s of simulated time:
+//!
+//! - `grid 128²`: `examples/drape_sphere.json` at 128 × 128 particles, which takes the grid
+//!   solver (conjugate gradients preconditioned by the geometric multigrid);
+//! - `mesh 10k`: the same sheet as a 100 × 100-vertex triangle mesh body, which takes the
+//!   spring-list solver.
+//!
+//! Each scene runs `RUNS` times (default 1: the grid run alone is long); the table gives the
+//! median wall time, the steps and simulated time to rest, and the conjugate-gradient iterations
+//! per step (mean and most). Iteration counts are deterministic; wall times are not.
+
+use std::time::{Duration, Instant};
+
+use drape::scene::Scene;
+use drape::solver::{Real, Simulation};
+use serde_json::{Value, json};
+
+const DT: f64 = 1.0 / 60.0;
+const REST_SPEED: f64 = 0.005;
+const MAX_SIMULATED: f64 = 5.0;
+
+fn grid_scene() -> Value {
+    let mut scene: Value =
+        serde_json::from_str(include_str!("../examples/drape_sphere.json")).expect("the example parses");
+    scene["bodies"][0]["resolution"] = json!([128, 128]);
+    scene["dt"] = json!(DT);
+    scene["duration"] = json!(MAX_SIMULATED);
+    scene
+}
+
+/// The sheet of `drape_sphere.json` as a mesh of `n × n` vertices, two triangles per cell.
+fn mesh_scene(n: usize) -> Value {
+    let mut scene = grid_scene();
+    let mut vertices = Vec::with_capacity(3 * n * n);
+    for j in 0..n {
+        for i in 0..n {
+            let (u, w) = (i as f64 / (n - 1) as f64 - 0.5, j as f64 / (n - 1) as f64 - 0.5);
+            vertices.extend([u, 1.0, w]);
+        }
+    }
+    let mut triangles = Vec::with_capacity(6 * (n - 1) * (n - 1));
+    for j in 0..n - 1 {
+        for i in 0..n - 1 {
+            let a = j * n + i;
+            triangles.extend([a, a + n, a + 1, a + 1, a + n, a + n + 1]);
+        }
+    }
+    scene["bodies"] = json!([{
+        "type": "mesh", "name": "sheet", "vertices": vertices, "triangles": triangles, "mass": 0.4,
+        "springs": {"structural": {"k": 2000, "damping": 2.0}, "bending": {"k": 20, "damping": 0.02}}
+    }]);
+    scene
+}
+
+struct Run {
+    wall: Duration,
+    steps: u64,
+    at_rest: bool,
+    mean_iterations: f64,
+    most_iterations: usize,
+}
+
+fn max_speed<T: Real>(sim: &Simulation<T>) -> f64 {
+    sim.state().velocities.iter().map(|v| v.to_dvec3().length()).fold(0.0, f64::max)
+}
+
+fn run_to_rest(scene: &Value) -> Run {
+    let compiled = Scene::from_json(scene.to_string().as_bytes()).expect("the scene is valid").compile();
+    let mut sim = Simulation::<f64>::new(&compiled.model, &compiled.config);
+    let start = Instant::now();
+    let (mut moving, mut at_rest) = (false, false);
+    while sim.time() < MAX_SIMULATED - 0.5 * DT {
+        sim.step().expect("the drape stays stable");
+        let speed = max_speed(&sim);
+        moving |= speed > REST_SPEED;
+        if moving && speed < REST_SPEED {
+            at_rest = true;
+            break;
+        }
+    }
+    let wall = start.elapsed();
+    let stats = sim.linear_solve_stats().expect("implicit Euler reports its solves");
+    Run {
+        wall,
+        steps: sim.steps_taken(),
+        at_rest,
+        mean_iterations: stats.total_iterations as f64 / sim.steps_taken() as f64,
+        most_iterations: stats.most_iterations,
+    }
+}
+
+fn main() {
+    let runs: usize = std::env::args().skip(1).find_map(|a| a.parse().ok()).unwrap_or(1).max(1);
+    println!("time to drape at dt = 1/60 s, rest below {REST_SPEED} m/s, median of {runs} run(s)");
+    println!("{:<10} {:>9} {:>6} {:>9} {:>8} {:>10} {:>5}", "scene", "wall s", "steps", "sim s", "rest", "CG/step", "most");
+    for (name, scene) in [("grid 128²", grid_scene()), ("mesh 10k", mesh_scene(100))] {
+        let mut all: Vec<Run> = (0..runs).map(|_| run_to_rest(&scene)).collect();
+        all.sort_by_key(|r| r.wall);
+        let r = &all[all.len() / 2];
+        println!(
+            "{:<10} {:>9.2} {:>6} {:>9.3} {:>8} {:>10.1} {:>5}",
+            name,
+            r.wall.as_secs_f64(),
+            r.steps,
+            r.steps as f64 * DT,
+            if r.at_rest { "yes" } else { "no" },
+            r.mean_iterations,
+            r.most_iterations
+        );
+    }
+}
