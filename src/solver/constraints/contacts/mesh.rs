@@ -17,6 +17,7 @@
 
 use crate::solver::constraints::contacts::Surface;
 use crate::solver::constraints::contacts::TriangleSurface;
+use crate::solver::constraints::contacts::nearby_triangles::{CAPACITY, KEEP, NearbyTriangles, REACH};
 use crate::solver::constraints::contacts::surface_topology::Topology;
 use crate::solver::constraints::contacts::triangle::Feature;
 use crate::solver::constraints::contacts::triangle_bvh::{Nearest, TriangleBvh};
@@ -100,22 +101,47 @@ impl<T: Real> MeshShape<T> {
     }
 
     /// The contact of a particle that moved from `start` to `end` in a step, if it has one: where
-    /// it ends and the outward normal there.
-    pub fn contact(&self, start: Vec3<T>, end: Vec3<T>) -> Option<Surface<T>> {
-        let mut crossed = None;
-        let mut end = end;
+    /// it ends and the outward normal there. With `nearby` (the triangles near each particle,
+    /// and this particle's index), the triangles kept near the particle stand for the hierarchy
+    /// while its path stays near them, and are gathered anew when it does not.
+    pub fn contact(
+        &self,
+        start: Vec3<T>,
+        end: Vec3<T>,
+        nearby: Option<(&NearbyTriangles, usize)>,
+    ) -> Option<Surface<T>> {
+        let mut slots = [0u32; CAPACITY];
+        let keep = self.thickness * T::from_f64(KEEP);
+        let kept = nearby.and_then(|(nearby, p)| nearby.kept(p, start, end, keep, &mut slots));
         let d = end - start;
-        if d.length_squared() > T::ZERO {
-            let closed = self.is_closed();
-            let enters = |t: usize, d: Vec3<T>| !closed || d.dot(self.normals[t]) < T::ZERO;
-            if let Some((t, s)) = self.bvh.first_crossing(start, end, enters) {
-                let n = self.normals[t];
-                let normal = if d.dot(n) < T::ZERO { n } else { -n };
-                end = start + d * s + normal * self.thickness;
-                crossed = Some(Surface { point: end, normal });
-            }
+        let closed = self.is_closed();
+        let enters = |t: usize, d: Vec3<T>| !closed || d.dot(self.normals[t]) < T::ZERO;
+        let crossing = match kept {
+            _ if d.length_squared() == T::ZERO => None,
+            Some(count) => self.bvh.first_crossing_among(&slots[..count], start, end, enters),
+            None => self.bvh.first_crossing(start, end, enters),
+        };
+        let mut end = end;
+        let mut crossed = None;
+        if let Some((t, s)) = crossing {
+            let n = self.normals[t];
+            let normal = if d.dot(n) < T::ZERO { n } else { -n };
+            end = start + d * s + normal * self.thickness;
+            crossed = Some(Surface { point: end, normal });
         }
-        match self.bvh.nearest(end, self.thickness) {
+        // A stop at a crossing can leave the kept triangles' reach: those near it are gathered.
+        let near = match (kept, nearby) {
+            (Some(count), _) if crossed.is_none() => Some(count),
+            (_, Some((nearby, p))) => {
+                nearby.gather(p, end, &self.bvh, self.thickness * T::from_f64(REACH), &mut slots)
+            }
+            (_, None) => None,
+        };
+        let nearest = match near {
+            Some(count) => self.bvh.nearest_among(&slots[..count], end, self.thickness),
+            None => self.bvh.nearest(end, self.thickness),
+        };
+        match nearest {
             Some(near) => self.pushed_out(end, &near, Some(start)).or(crossed),
             None => crossed,
         }

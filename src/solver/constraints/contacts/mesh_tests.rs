@@ -186,6 +186,107 @@ fn the_hierarchy_finds_what_a_search_of_every_triangle_finds() {
 }
 
 #[test]
+fn the_triangles_within_a_radius_are_those_a_search_of_every_triangle_finds() {
+    let sphere = icosphere(DVec3::new(0.1, -0.2, 0.3), 0.7, 3);
+    let corners = corners(&sphere);
+    let bvh = TriangleBvh::new(&corners);
+    let mut seed = 5;
+    let mut point = || Vec3::new(uniform(&mut seed), uniform(&mut seed), uniform(&mut seed)) * 1.2;
+    let mut total = 0;
+    for _ in 0..200 {
+        let p = point();
+        let radius = 0.2;
+        let brute: Vec<usize> = (0..corners.len())
+            .filter(|&t| (p - triangle::nearest_point(corners[t], p).0).length_squared() <= radius * radius)
+            .collect();
+        let mut slots = Vec::new();
+        assert!(bvh.within(p, radius, |slot| {
+            slots.push(slot);
+            true
+        }));
+        // Slots are in leaf order: the nearest among them names the triangle in the given order.
+        let mut found: Vec<usize> =
+            slots.iter().map(|&s| bvh.nearest_among(&[s], p, radius).unwrap().triangle).collect();
+        found.sort_unstable();
+        assert_eq!(found, brute, "{p:?}");
+        total += brute.len();
+        // A visit that says stop ends the walk.
+        let mut visits = 0;
+        let all = bvh.within(p, radius, |_| {
+            visits += 1;
+            visits < 2
+        });
+        assert_eq!((all, visits), (brute.len() < 2, brute.len().min(2)));
+    }
+    assert!(total > 200, "the points meet {total} triangles in all");
+}
+
+/// Follows particles from `start` on random paths that `drift` pulls onto `surface`, mostly in
+/// short steps and now and then a long one, and checks that each step's contact found among the
+/// triangles kept near the particle is the contact the hierarchy finds (within rounding). Returns the share of steps
+/// that took the kept triangles with some triangle among them.
+fn kept_triangles_give_the_hierarchys_contacts(
+    surface: &TriangleSurface,
+    thickness: f64,
+    start: fn(&mut u64) -> Vec3<f64>,
+    drift: fn(Vec3<f64>) -> Vec3<f64>,
+) -> f64 {
+    let shape = mesh::MeshShape::<f64>::new(surface, thickness);
+    let particles = 64;
+    let nearby = nearby_triangles::NearbyTriangles::new(particles);
+    let mut seed = 7;
+    let mut kept_steps = 0;
+    let steps = 300;
+    for p in 0..particles {
+        let mut x = start(&mut seed);
+        for step in 0..steps {
+            let reach = if step % 29 == 0 { 0.3 } else { 0.2 * thickness };
+            let jitter = Vec3::new(uniform(&mut seed), uniform(&mut seed), uniform(&mut seed)) * reach;
+            let end = x + jitter + drift(x) * thickness;
+            let mut slots = [0; nearby_triangles::CAPACITY];
+            let keep = thickness * nearby_triangles::KEEP;
+            let kept = nearby.kept(p, x, end, keep, &mut slots);
+            kept_steps += usize::from(kept.is_some_and(|count| count > 0));
+            let with_kept = shape.contact(x, end, Some((&nearby, p)));
+            let walked = shape.contact(x, end, None);
+            // Equal but for rounding: at an edge the two triangles give its point each its own way.
+            let same = match (with_kept, walked) {
+                (Some(a), Some(b)) => {
+                    (a.point - b.point).length() < 1e-12 && (a.normal - b.normal).length() < 1e-12
+                }
+                (a, b) => a == b,
+            };
+            assert!(same, "particle {p}, step {step}: {x:?} to {end:?}: {with_kept:?} against {walked:?}");
+            x = walked.map_or(end, |s| s.point);
+        }
+    }
+    kept_steps as f64 / (particles * steps) as f64
+}
+
+#[test]
+fn the_triangles_kept_near_a_particle_give_the_contacts_the_hierarchy_gives() {
+    let thickness = 0.02;
+    // A closed mesh (a solid), particles falling towards its centre from around it.
+    let sphere = icosphere(DVec3::ZERO, 0.5, 3);
+    let around = |seed: &mut u64| {
+        let v = Vec3::new(uniform(seed), uniform(seed), uniform(seed));
+        v * (0.6 / v.length().max(1e-3))
+    };
+    let inwards = |x: Vec3<f64>| x * -0.2;
+    let share = kept_triangles_give_the_hierarchys_contacts(&sphere, thickness, around, inwards);
+    assert!(share > 0.2, "only {share} of the steps on the sphere kept their triangles");
+    // A bumpy open sheet, particles falling onto it from above.
+    let mut bumpy = sheet(0.0, 2.0, 24);
+    for v in &mut bumpy.vertices {
+        v.y = 0.05 * (7.0 * v.x).sin() * (5.0 * v.z).cos();
+    }
+    let above = |seed: &mut u64| Vec3::new(0.8 * uniform(seed), 0.1, 0.8 * uniform(seed));
+    let down = |_: Vec3<f64>| Vec3::new(0.0, -0.2, 0.0);
+    let share = kept_triangles_give_the_hierarchys_contacts(&bumpy, thickness, above, down);
+    assert!(share > 0.2, "only {share} of the steps on the sheet kept their triangles");
+}
+
+#[test]
 fn closed_meshes_are_told_from_open_ones_and_turned_outwards() {
     let sphere = icosphere(DVec3::ZERO, 1.0, 1);
     assert!(sphere.is_closed());

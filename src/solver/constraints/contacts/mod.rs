@@ -34,6 +34,7 @@
 mod axis_box;
 mod cylinder;
 mod mesh;
+mod nearby_triangles;
 mod plane;
 mod sphere;
 mod surface_topology;
@@ -61,6 +62,8 @@ use crate::solver::math::vectors::Vectors;
 use crate::solver::motion::{Motion, Rigid};
 use crate::solver::parallel;
 use crate::solver::state::State;
+
+use nearby_triangles::NearbyTriangles;
 
 /// The friction coefficient a collider has when the scene gives none.
 pub const DEFAULT_FRICTION: f64 = 0.3;
@@ -230,8 +233,14 @@ impl<T: Real> ShapeIn<T> {
     }
 
     /// Where a particle moving from `start` to `end` (outside at both ends) met the surface, for
-    /// the shapes a particle can cross within one step without ending inside.
-    fn contact(&self, start: Vec3<T>, end: Vec3<T>) -> Option<Surface<T>> {
+    /// the shapes a particle can cross within one step without ending inside; a mesh uses the
+    /// triangles kept near the particle, when given `nearby` (see [`NearbyTriangles`]).
+    fn contact(
+        &self,
+        start: Vec3<T>,
+        end: Vec3<T>,
+        nearby: Option<(&NearbyTriangles, usize)>,
+    ) -> Option<Surface<T>> {
         match self {
             Self::Sphere(s) => {
                 let entry = || s.entry(start, end);
@@ -244,7 +253,7 @@ impl<T: Real> ShapeIn<T> {
                     None => s.passage(start, end),
                 }
             }
-            Self::Mesh(s) => s.contact(start, end),
+            Self::Mesh(s) => s.contact(start, end, nearby),
             other => other.inside(end),
         }
     }
@@ -258,6 +267,8 @@ struct ColliderIn<T> {
     motion: Option<Motion>,
     /// For a moving collider, where the step takes it.
     moving: Option<StepMotion>,
+    /// For a mesh, the triangles near each particle.
+    nearby: Option<NearbyTriangles>,
 }
 
 /// Where a moving collider is at the start and at the end of a step.
@@ -274,12 +285,14 @@ impl<T: Real> ColliderIn<T> {
     /// own frame: the particle's start as seen from where the collider was, its end as seen from
     /// where it is, so that the relative path is tested and a moving surface sweeps up the
     /// particles in its way.
-    fn contact(&self, start: Vec3<T>, end: Vec3<T>) -> Option<(Surface<T>, Vec3<T>)> {
+    /// `p` is the particle's index.
+    fn contact(&self, start: Vec3<T>, end: Vec3<T>, p: usize) -> Option<(Surface<T>, Vec3<T>)> {
+        let nearby = self.nearby.as_ref().map(|nearby| (nearby, p));
         let Some(m) = self.moving else {
-            return self.shape.contact(start, end).map(|s| (s, Vec3::ZERO));
+            return self.shape.contact(start, end, nearby).map(|s| (s, Vec3::ZERO));
         };
         let local = |frame: &Rigid, x: Vec3<T>| Vec3::from_dvec3(frame.inverse_point(x.to_dvec3()));
-        let surface = self.shape.contact(local(&m.from, start), local(&m.to, end))?;
+        let surface = self.shape.contact(local(&m.from, start), local(&m.to, end), nearby)?;
         let at = surface.point.to_dvec3();
         let (now, before) = (m.to.point(at), m.from.point(at));
         let normal = Vec3::from_dvec3(m.to.rotation * surface.normal.to_dvec3());
@@ -298,8 +311,10 @@ impl<T: Real> ColliderIn<T> {
     }
 }
 
-/// One band's particles: their start-of-step positions, their state and inverse masses.
+/// One band's particles, from particle `first`: their start-of-step positions, their state
+/// and inverse masses.
 struct Band<'a, T> {
+    first: usize,
     start: [&'a [T]; 3],
     positions: [&'a mut [T]; 3],
     velocities: [&'a mut [T]; 3],
@@ -314,7 +329,9 @@ impl<T: Real> Band<'_, T> {
         }
         let at = |axes: [&[T]; 3]| Vec3::new(axes[0][p], axes[1][p], axes[2][p]);
         let end = at(self.positions.each_ref().map(|a| &**a));
-        let Some((surface, surface_velocity)) = c.contact(at(self.start), end) else { return false };
+        let Some((surface, surface_velocity)) = c.contact(at(self.start), end, self.first + p) else {
+            return false;
+        };
         // The response acts on the velocity relative to the surface.
         let mut velocity = at(self.velocities.each_ref().map(|a| &**a)) - surface_velocity;
         respond(&mut velocity, surface.normal, c.friction, c.restitution);
@@ -349,6 +366,7 @@ impl<T: Real> Contacts<T> {
                 restitution: T::from_f64(c.restitution),
                 moving: c.motion.as_ref().map(|m| StepMotion { from: m.at(0.0), to: m.at(0.0), dt: 1.0 }),
                 motion: c.motion.clone(),
+                nearby: matches!(c.shape, Shape::Mesh { .. }).then(|| NearbyTriangles::new(particles)),
             })
             .collect();
         Some(Self { colliders, start: Vectors::zeros(particles) })
@@ -405,6 +423,7 @@ impl<T: Real> Contacts<T> {
         parallel::in_bands([x, y, z, u, v, w], n, 1, band, &|first, count, [x, y, z, u, v, w]| {
             let particles = first..first + count;
             let band = Band {
+                first,
                 start: self.start.range(particles.clone()),
                 positions: [x, y, z],
                 velocities: [u, v, w],

@@ -327,7 +327,7 @@ fn particles_resolved_in_bands_and_lanes_end_as_each_resolved_alone() {
     let mut expected_touched = false;
     for p in (0..n).filter(|&p| inverse_masses[p] != 0.0) {
         for c in &contacts.colliders {
-            if let Some(surface) = c.shape.contact(start.get(p), expected.positions.get(p)) {
+            if let Some(surface) = c.shape.contact(start.get(p), expected.positions.get(p), None) {
                 expected.positions.set(p, surface.point);
                 let mut v = expected.velocities.get(p);
                 respond(&mut v, surface.normal, c.friction, c.restitution);

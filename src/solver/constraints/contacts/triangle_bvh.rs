@@ -118,22 +118,66 @@ impl<T: Real> TriangleBvh<T> {
                 depth += 2;
                 continue;
             }
-            let slots = node.first as usize..(node.first + node.count) as usize;
-            for slot in slots {
-                let (point, feature) = triangle::nearest_point(self.corners[slot], p);
-                let distance_squared = (p - point).length_squared();
-                if distance_squared < best_squared || (best.is_none() && distance_squared <= best_squared) {
-                    best_squared = distance_squared;
-                    best = Some(Nearest {
-                        triangle: self.order[slot] as usize,
-                        point,
-                        feature,
-                        distance_squared,
-                    });
-                }
+            for slot in node.first..node.first + node.count {
+                self.consider_nearest(slot, p, &mut best_squared, &mut best);
             }
         }
         best
+    }
+
+    /// [`nearest`](Self::nearest) among the triangles in `slots` (positions in leaf order, as
+    /// [`within`](Self::within) gives them) only.
+    pub(crate) fn nearest_among(&self, slots: &[u32], p: Vec3<T>, radius: T) -> Option<Nearest<T>> {
+        let mut best_squared = radius * radius;
+        let mut best = None;
+        for &slot in slots {
+            self.consider_nearest(slot, p, &mut best_squared, &mut best);
+        }
+        best
+    }
+
+    /// Keeps the nearest point of the triangle in `slot` to `p` as `best` when it is nearer.
+    #[inline(always)]
+    fn consider_nearest(&self, slot: u32, p: Vec3<T>, best_squared: &mut T, best: &mut Option<Nearest<T>>) {
+        let slot = slot as usize;
+        let (point, feature) = triangle::nearest_point(self.corners[slot], p);
+        let distance_squared = (p - point).length_squared();
+        if distance_squared < *best_squared || (best.is_none() && distance_squared <= *best_squared) {
+            *best_squared = distance_squared;
+            *best = Some(Nearest { triangle: self.order[slot] as usize, point, feature, distance_squared });
+        }
+    }
+
+    /// Calls `visit` with the slot (position in leaf order) of each triangle no farther than
+    /// `radius` from `p`, in the tree's fixed order, until it returns `false`. Returns whether
+    /// every such triangle was visited.
+    pub(crate) fn within(&self, p: Vec3<T>, radius: T, mut visit: impl FnMut(u32) -> bool) -> bool {
+        if self.corners.is_empty() {
+            return true;
+        }
+        let radius_squared = radius * radius;
+        let mut stack = [0u32; STACK];
+        let mut depth = 1;
+        while depth > 0 {
+            depth -= 1;
+            let node = self.nodes[stack[depth] as usize];
+            if box_distance_squared(node.lower, node.upper, p) > radius_squared {
+                continue;
+            }
+            if node.count == 0 {
+                stack[depth] = node.first + 1;
+                stack[depth + 1] = node.first;
+                depth += 2;
+                continue;
+            }
+            for slot in node.first..node.first + node.count {
+                let (point, _) = triangle::nearest_point(self.corners[slot as usize], p);
+                if (p - point).length_squared() <= radius_squared && !visit(slot) {
+                    return false;
+                }
+            }
+        }
+        true
     }
 
     /// The first crossing of the segment from `start` to `end` with a triangle that `counts`
@@ -167,11 +211,8 @@ impl<T: Real> TriangleBvh<T> {
                 depth += 2;
                 continue;
             }
-            for slot in node.first as usize..(node.first + node.count) as usize {
-                let Some(s) = triangle::crossing(self.corners[slot], start, d) else { continue };
-                let t = self.order[slot] as usize;
-                if best.is_none_or(|(_, b)| s < b) && counts(t, d) {
-                    best = Some((t, s));
+            for slot in node.first..node.first + node.count {
+                if let Some(s) = self.consider_crossing(slot, start, d, &counts, &mut best) {
                     // Nothing beyond the crossing can come first: the box shrinks to the part before it.
                     (lower, upper) = (start, start);
                     extend(&mut lower, &mut upper, start + d * s);
@@ -179,6 +220,44 @@ impl<T: Real> TriangleBvh<T> {
             }
         }
         best
+    }
+
+    /// [`first_crossing`](Self::first_crossing) among the triangles in `slots` (positions in
+    /// leaf order, as [`within`](Self::within) gives them) only.
+    pub(crate) fn first_crossing_among(
+        &self,
+        slots: &[u32],
+        start: Vec3<T>,
+        end: Vec3<T>,
+        counts: impl Fn(usize, Vec3<T>) -> bool,
+    ) -> Option<(usize, T)> {
+        let d = end - start;
+        let mut best = None;
+        for &slot in slots {
+            self.consider_crossing(slot, start, d, &counts, &mut best);
+        }
+        best
+    }
+
+    /// Keeps the crossing of the segment `start + s · d` with the triangle in `slot` as `best`
+    /// when it counts and comes first, and returns its parameter then.
+    #[inline(always)]
+    fn consider_crossing(
+        &self,
+        slot: u32,
+        start: Vec3<T>,
+        d: Vec3<T>,
+        counts: &impl Fn(usize, Vec3<T>) -> bool,
+        best: &mut Option<(usize, T)>,
+    ) -> Option<T> {
+        let slot = slot as usize;
+        let s = triangle::crossing(self.corners[slot], start, d)?;
+        let t = self.order[slot] as usize;
+        let first = best.is_none_or(|(_, b)| s < b) && counts(t, d);
+        first.then(|| {
+            *best = Some((t, s));
+            s
+        })
     }
 }
 

@@ -1,0 +1,129 @@
+//! For each particle, the triangles of a mesh collider near where it was last seen, so that a
+//! particle that stays where it is (a cloth resting on the mesh) meets a handful of triangles a
+//! step instead of walking the hierarchy twice.
+//!
+//! The triangles within [`REACH`] thicknesses of a point, the particle's **anchor**, are gathered
+//! (at most [`CAPACITY`]). While the particle's path over a step, its start and its end, stays
+//! within [`KEEP`] thicknesses of the anchor, every triangle the path can cross is within `KEEP`
+//! of the anchor, and every triangle within the thickness of its end within `1 + KEEP`: both
+//! among those gathered, so the contact found among them is the one the whole hierarchy gives
+//! (the margin up to `REACH` covers rounding). Otherwise (it moved away, or more triangles were
+//! near than fit) the hierarchy is walked, and the triangles near where the particle ended are
+//! gathered anew. The arrays are made once with the collider's stage; anchors are kept in `f32`
+//! in either precision, and the triangles are gathered around the anchor as kept.
+//!
+//! Each particle's entries are read and written only by the band of particles that holds it:
+//! relaxed atomics (plain loads and stores) let the bands share the arrays without cutting them.
+
+use std::sync::atomic::{AtomicU8, AtomicU32, Ordering::Relaxed};
+
+use crate::solver::constraints::contacts::triangle_bvh::TriangleBvh;
+use crate::solver::math::real::Real;
+use crate::solver::math::vec3::Vec3;
+
+/// The most triangles kept for one particle.
+pub(super) const CAPACITY: usize = 16;
+/// How far, in thicknesses, a particle's path may stray from its anchor for its triangles to
+/// be kept.
+pub(super) const KEEP: f64 = 0.5;
+/// How far, in thicknesses, from the anchor triangles are gathered.
+pub(super) const REACH: f64 = 1.6;
+/// The count of a particle with nothing usable gathered.
+const NONE: u8 = u8::MAX;
+
+/// The triangles near each particle, by their slots in the hierarchy's leaf order.
+#[derive(Debug)]
+pub(super) struct NearbyTriangles {
+    anchors: Vec<[AtomicU32; 3]>,
+    /// How many of a particle's slots are in use, or [`NONE`].
+    counts: Vec<AtomicU8>,
+    /// [`CAPACITY`] slots per particle.
+    slots: Vec<AtomicU32>,
+}
+
+impl NearbyTriangles {
+    /// Room for `particles` particles, with nothing gathered.
+    pub fn new(particles: usize) -> Self {
+        Self {
+            anchors: (0..particles).map(|_| Default::default()).collect(),
+            counts: (0..particles).map(|_| AtomicU8::new(NONE)).collect(),
+            slots: (0..particles * CAPACITY).map(|_| AtomicU32::new(0)).collect(),
+        }
+    }
+
+    /// The triangles gathered for particle `p`, copied into `slots`, when its path from `start`
+    /// to `end` stays within `keep` of its anchor: how many there are.
+    #[inline]
+    pub fn kept<T: Real>(
+        &self,
+        p: usize,
+        start: Vec3<T>,
+        end: Vec3<T>,
+        keep: T,
+        slots: &mut [u32; CAPACITY],
+    ) -> Option<usize> {
+        let count = self.counts[p].load(Relaxed);
+        if count == NONE {
+            return None;
+        }
+        let anchor = self.anchor(p);
+        let keep_squared = keep * keep;
+        let near = |x: Vec3<T>| (x - anchor).length_squared() <= keep_squared;
+        if !(near(start) && near(end)) {
+            return None;
+        }
+        let count = count as usize;
+        let kept = &self.slots[p * CAPACITY..p * CAPACITY + count];
+        for (slot, kept) in slots.iter_mut().zip(kept) {
+            *slot = kept.load(Relaxed);
+        }
+        Some(count)
+    }
+
+    /// Gathers the triangles of `bvh` within `reach` of `at` for particle `p`, and copies them
+    /// into `slots`: how many there are, or `None` when more than [`CAPACITY`] are that near.
+    pub fn gather<T: Real>(
+        &self,
+        p: usize,
+        at: Vec3<T>,
+        bvh: &TriangleBvh<T>,
+        reach: T,
+        slots: &mut [u32; CAPACITY],
+    ) -> Option<usize> {
+        let rounded = at.to_array().map(|x| x.to_f64() as f32);
+        for (kept, x) in self.anchors[p].iter().zip(rounded) {
+            kept.store(x.to_bits(), Relaxed);
+        }
+        let mut count = 0;
+        let all = bvh.within(self.anchor(p), reach, |slot| {
+            if count == CAPACITY {
+                return false;
+            }
+            slots[count] = slot;
+            count += 1;
+            true
+        });
+        if !all {
+            self.counts[p].store(NONE, Relaxed);
+            return None;
+        }
+        for (kept, &slot) in self.slots[p * CAPACITY..].iter().zip(&slots[..count]) {
+            kept.store(slot, Relaxed);
+        }
+        self.counts[p].store(count as u8, Relaxed);
+        Some(count)
+    }
+
+    fn anchor<T: Real>(&self, p: usize) -> Vec3<T> {
+        let [x, y, z] =
+            self.anchors[p].each_ref().map(|a| T::from_f64(f32::from_bits(a.load(Relaxed)) as f64));
+        Vec3::new(x, y, z)
+    }
+}
+
+/// A copy starts with nothing gathered, which only costs its first steps a walk.
+impl Clone for NearbyTriangles {
+    fn clone(&self) -> Self {
+        Self::new(self.counts.len())
+    }
+}
