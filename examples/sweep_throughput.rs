@@ -9,8 +9,7 @@
 //! the cores other processes used meanwhile and the cores left idle (idle and I/O wait). A
 //! service that leaves cores idle shows idle cores; one that competes with other work shows
 //! fewer cores busy but none idle. From `GET /metrics` it takes the workers' occupancy (time spent
-//! on jobs over workers × wall time). It also prints jobs per second, the time from the last
-//! job's end (its `finished_at`) to the complete table reaching the client, and how long that last
+//! on jobs over workers × wall time). It also prints runs per second and how long the last
 //! `GET /sweeps/{id}` took. Sweeps alternate between `--store memory` and the default SQLite
 //! store, each server with its default number of workers unless WORKERS is given.
 //!
@@ -26,7 +25,7 @@ mod serve;
 mod support;
 
 use std::error::Error;
-use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+use std::time::{Duration, Instant};
 
 use serde_json::{Value, json};
 
@@ -43,7 +42,6 @@ struct Measured {
     other_cores: f64,
     idle_cores: f64,
     occupancy: f64,
-    last_end_to_table_s: f64,
     final_get_s: f64,
     mean_job_s: f64,
 }
@@ -88,14 +86,14 @@ async fn main() -> Result<(), Box<dyn Error>> {
         workers.as_deref().unwrap_or("default")
     );
     println!(
-        "| store | wall (s) | cores busy | other processes (cores) | idle (cores) | worker occupancy | jobs/s | mean run (ms) | last job end → table (ms) | last `GET /sweeps/{{id}}` (ms) |"
+        "| store | wall (s) | cores busy | other processes (cores) | idle (cores) | worker occupancy | jobs/s | mean run (ms) | last `GET /sweeps/{{id}}` (ms) |"
     );
-    println!("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |");
+    println!("| --- | --- | --- | --- | --- | --- | --- | --- | --- |");
     for ((name, _), runs) in servers.iter().zip(&results) {
         let of = |f: fn(&Measured) -> f64| runs.iter().map(f).collect::<Vec<_>>();
         let wall = of(|m| m.wall_s);
         println!(
-            "| {name} | {:.2} ({:.2}) | {:.2} | {:.2} | {:.2} | {:.2} | {:.1} | {:.0} | {:.0} | {:.1} |",
+            "| {name} | {:.2} ({:.2}) | {:.2} | {:.2} | {:.2} | {:.2} | {:.1} | {:.0} | {:.1} |",
             median(&wall),
             min(&wall),
             median(&of(|m| m.cores_busy)),
@@ -104,7 +102,6 @@ async fn main() -> Result<(), Box<dyn Error>> {
             median(&of(|m| m.occupancy)),
             VARIANTS as f64 / median(&wall),
             median(&of(|m| m.mean_job_s)) * 1e3,
-            median(&of(|m| m.last_end_to_table_s)) * 1e3,
             median(&of(|m| m.final_get_s)) * 1e3,
         );
     }
@@ -138,36 +135,24 @@ async fn run_sweep(
         }
         tokio::time::sleep(POLL).await;
     };
-    let received_ms = SystemTime::now().duration_since(UNIX_EPOCH)?.as_secs_f64() * 1e3;
     let wall_s = start.elapsed().as_secs_f64();
     let cpu = cpu_seconds(server.pid())? - cpu_before;
     let machine_after = machine_seconds()?;
     let (busy_after, workers) = (worker_busy(client, server).await?, workers(client, server).await?);
 
-    // The table's rows carry the runs' own wall times; the jobs carry when they ended.
+    // The table's rows carry the runs' own wall times.
     let rows = table["rows"].as_array().ok_or("no rows")?;
     let failed = rows.iter().filter(|r| r["status"] != "succeeded").count();
     if failed > 0 {
         return Err(format!("{failed} runs did not succeed: {table}").into());
     }
     let mean_job_s = rows.iter().filter_map(|r| r["wall_time_s"].as_f64()).sum::<f64>() / rows.len() as f64;
-    let mut last_end_ms = 0.0_f64;
-    for job in table["jobs"]["variants"].as_array().ok_or("no jobs")? {
-        let job: Value = client
-            .get(format!("{}/jobs/{}", server.base, job.as_str().ok_or("a job id")?))
-            .send()
-            .await?
-            .json()
-            .await?;
-        last_end_ms = last_end_ms.max(epoch_ms(job["finished_at"].as_str().ok_or("no finished_at")?)?);
-    }
     Ok(Measured {
         wall_s,
         cores_busy: cpu / wall_s,
         other_cores: (machine_after.busy - machine_before.busy - cpu) / wall_s,
         idle_cores: (machine_after.idle - machine_before.idle) / wall_s,
         occupancy: (busy_after - busy_before) / (workers * wall_s),
-        last_end_to_table_s: (received_ms - last_end_ms) / 1e3,
         final_get_s,
         mean_job_s,
     })
@@ -189,21 +174,4 @@ async fn worker_busy(client: &reqwest::Client, server: &Server) -> Result<f64, B
 
 async fn workers(client: &reqwest::Client, server: &Server) -> Result<f64, Box<dyn Error>> {
     metric(client, server, "drape_workers").await
-}
-
-/// `2026-11-22T03:50:29.123Z` as milliseconds since the Unix epoch.
-fn epoch_ms(timestamp: &str) -> Result<f64, Box<dyn Error>> {
-    let number = |range: std::ops::Range<usize>| -> Result<i64, Box<dyn Error>> {
-        Ok(timestamp.get(range).ok_or("a short timestamp")?.parse::<i64>()?)
-    };
-    let (year, month, day) = (number(0..4)?, number(5..7)?, number(8..10)?);
-    let (h, m, s, ms) = (number(11..13)?, number(14..16)?, number(17..19)?, number(20..23)?);
-    // Days since 1970-01-01 of a civil date (Howard Hinnant's algorithm).
-    let y = if month <= 2 { year - 1 } else { year };
-    let era = y.div_euclid(400);
-    let yoe = y - era * 400;
-    let doy = (153 * (month + if month > 2 { -3 } else { 9 }) + 2) / 5 + day - 1;
-    let doe = yoe * 365 + yoe / 4 - yoe / 100 + doy;
-    let days = era * 146_097 + doe - 719_468;
-    Ok((((days * 24 + h) * 60 + m) * 60 + s) as f64 * 1e3 + ms as f64)
 }
