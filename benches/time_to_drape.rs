@@ -99,7 +99,10 @@ fn run_to_rest(scene: &Value) -> Run {
 fn main() {
     let runs: usize = std::env::args().skip(1).find_map(|a| a.parse().ok()).unwrap_or(1).max(1);
     println!("time to drape at dt = 1/60 s, rest below {REST_SPEED} m/s, median of {runs} run(s)");
-    println!("{:<10} {:>9} {:>6} {:>9} {:>8} {:>10} {:>5}", "scene", "wall s", "steps", "sim s", "rest", "CG/step", "most");
+    println!(
+        "{:<10} {:>9} {:>6} {:>9} {:>8} {:>10} {:>5}",
+        "scene", "wall s", "steps", "sim s", "rest", "CG/step", "most"
+    );
     for (name, scene) in [("grid 128²", grid_scene()), ("mesh 10k", mesh_scene(100))] {
         let mut all: Vec<Run> = (0..runs).map(|_| run_to_rest(&scene)).collect();
         all.sort_by_key(|r| r.wall);
