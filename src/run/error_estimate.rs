@@ -153,8 +153,11 @@ pub(super) fn execute_with_estimate(
     if let Some(fine) = final_positions {
         let h = recording.stats.dt;
         let mut error = estimate(compiled, method, &fine, h, &companions, spacing);
-        error.equilibrium =
-            recording.stats.stopped_at_rest.map(|t| equilibrium(&compiled.model, &compiled.config, &fine, t));
+        let interrupt = control.interrupt();
+        error.equilibrium = recording
+            .stats
+            .stopped_at_rest
+            .and_then(|t| equilibrium(&compiled.model, &compiled.config, &fine, t, &interrupt));
         recording.stats.error = Some(error);
     }
     recording

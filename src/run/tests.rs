@@ -590,3 +590,20 @@ fn a_hanging_cloth_stopped_early_predicts_its_distance_from_the_settled_shape() 
     let ratio = q_loose.displacement_max / distance;
     assert!((1.0 / 1.5..1.5).contains(&ratio), "predicted {} m, true {distance} m", q_loose.displacement_max);
 }
+
+#[test]
+fn the_equilibrium_solve_stops_when_its_run_is_interrupted() {
+    // A small cloth hung from two corners, as it starts: far from equilibrium, so the solve has
+    // iterations to do. An interrupt raised before it ends leaves no estimate rather than a late one.
+    let scene =
+        Scene::from_json(json!({"duration": 0.1, "bodies": [small_cloth()]}).to_string().as_bytes()).unwrap();
+    let compiled = scene.compile();
+    let (model, config) = (&compiled.model, &compiled.config);
+    let positions = model.positions.clone();
+    let free = crate::solver::Interrupt::new();
+    let solved = crate::solver::equilibrium(model, config, &positions, 0.0, &free).expect("not interrupted");
+    assert!(solved.iterations > 0 && solved.residual_force > 0.0, "{solved:?}");
+    let raised = crate::solver::Interrupt::new();
+    raised.raise();
+    assert_eq!(crate::solver::equilibrium(model, config, &positions, 0.0, &raised), None);
+}

@@ -13,13 +13,15 @@
 //! springs' blocks of the implicit integrator, compressed springs without their transverse part,
 //! and the bending elements' constant matrix), by conjugate gradients with the held particles
 //! filtered out (Baraff and Witkin). To first order `x + δx` is the static solution, so `|δx|`
-//! is how far the state is from the shape it would settle to.
+//! is how far the state is from the shape it would settle to. The solve looks at the run's
+//! [`Interrupt`] at every iteration, so a cancelled or timed-out run does not wait for it.
 
 use glam::DVec3;
 
 use crate::solver::constraints::contacts::{Collider, Shape};
 use crate::solver::forces::dynamics::Dynamics;
 use crate::solver::forces::springs::{direction, stiffness_block};
+use crate::solver::interrupt::Interrupt;
 use crate::solver::math::sym3::Sym3;
 use crate::solver::math::vec3::Vec3;
 use crate::solver::math::vectors::Vectors;
@@ -58,8 +60,15 @@ fn filter(held: bool, v: DVec3) -> DVec3 {
 }
 
 /// The residual of `positions` (time `t`, for moving colliders and wind) and the displacement it
-/// implies, for the model and configuration the state was simulated with.
-pub fn equilibrium(model: &Model, config: &Config, positions: &[DVec3], t: f64) -> Equilibrium {
+/// implies, for the model and configuration the state was simulated with; `None` when
+/// `interrupt` is raised before the solve ends.
+pub fn equilibrium(
+    model: &Model,
+    config: &Config,
+    positions: &[DVec3],
+    t: f64,
+    interrupt: &Interrupt,
+) -> Option<Equilibrium> {
     let n = positions.len();
     let mut dynamics = Dynamics::<f64>::new(model, config.gravity, 0.0);
     if let Some(wind) = &config.wind {
@@ -84,14 +93,14 @@ pub fn equilibrium(model: &Model, config: &Config, positions: &[DVec3], t: f64) 
     });
 
     let stiffness = Stiffness::new(&dynamics, positions, &held);
-    let (displacement, iterations) = stiffness.solve(&residual);
+    let (displacement, iterations) = stiffness.solve(&residual, interrupt)?;
     let displacement_max = displacement.iter().map(|d| d.length()).fold(0.0, f64::max);
     let displacement_rms = if n == 0 {
         0.0
     } else {
         (displacement.iter().map(|d| d.length_squared()).sum::<f64>() / n as f64).sqrt()
     };
-    Equilibrium { residual_force, residual_relative, displacement_max, displacement_rms, iterations }
+    Some(Equilibrium { residual_force, residual_relative, displacement_max, displacement_rms, iterations })
 }
 
 /// Whether `x` lies on the collider's surface (or inside) at time `t`.
@@ -156,8 +165,9 @@ impl<'a> Stiffness<'a> {
         }
     }
 
-    /// `δx` with `S K S δx = S r`, by preconditioned conjugate gradients, and the iterations.
-    fn solve(&self, residual: &[DVec3]) -> (Vec<DVec3>, usize) {
+    /// `δx` with `S K S δx = S r`, by preconditioned conjugate gradients, and the iterations;
+    /// `None` if `interrupt` is raised first.
+    fn solve(&self, residual: &[DVec3], interrupt: &Interrupt) -> Option<(Vec<DVec3>, usize)> {
         let n = residual.len();
         let filter_all = |v: &mut [DVec3]| v.iter_mut().zip(self.held).for_each(|(v, &h)| *v = filter(h, *v));
         let precondition = |r: &[DVec3], z: &mut [DVec3]| {
@@ -179,6 +189,9 @@ impl<'a> Stiffness<'a> {
         let max_iterations = (3 * n).clamp(100, MAX_ITERATIONS);
         let mut iterations = 0;
         while dot(&r, &r).sqrt() > target && iterations < max_iterations {
+            if interrupt.is_raised() {
+                return None;
+            }
             self.apply(&search, &mut product);
             for ((q, v), &h) in q.iter_mut().zip(&product).zip(self.held) {
                 *q = filter(h, v.to_dvec3());
@@ -202,6 +215,6 @@ impl<'a> Stiffness<'a> {
             iterations += 1;
         }
         filter_all(&mut x);
-        (x, iterations)
+        Some((x, iterations))
     }
 }
