@@ -5,6 +5,13 @@
 /// `λ = w l³ / B`), by shooting on `θ'(0)` with RK4: the tip chord's angle below horizontal, in
 /// radians.
 pub fn elastica_chord_angle(lambda: f64) -> f64 {
+    let [x, y] = elastica_tip(lambda);
+    y.atan2(x)
+}
+
+/// The same elastica's tip, `[x, y]` over the free length: how far out from the clamp and how
+/// far below it the strip ends.
+pub fn elastica_tip(lambda: f64) -> [f64; 2] {
     const STEPS: usize = 4000;
     // Integrates (θ, θ', x, y) from 0 to 1.
     let shoot = |slope: f64| {
@@ -31,5 +38,5 @@ pub fn elastica_chord_angle(lambda: f64) -> f64 {
         if shoot(middle)[1] > 0.0 { high = middle } else { low = middle }
     }
     let [_, _, x, y] = shoot(0.5 * (low + high));
-    y.atan2(x)
+    [x, y]
 }
