@@ -1,7 +1,7 @@
 //! One step of the performance peers' hanging cloth at N = 32, 64, 128 and 256, for symplectic
 //! Euler, RK4 and implicit Euler in f32 and f64; and the same cloth given as a triangle mesh, whose
 //! springs go through the general spring pass, for symplectic Euler; and the cloth as a fabric
-//! bending by its bending elements, for symplectic and implicit Euler.
+//! bending by its bending elements, for symplectic Euler, RK4 and implicit Euler.
 //!
 //! Explicit integrators use the peers' step for each size (the largest power-of-two fraction of
 //! 1e-4 s that is stable); implicit Euler uses 1/600 s. `docs/performance.md` has the figures.
@@ -115,7 +115,9 @@ fn steps(c: &mut Criterion) {
             bench_body::<f32>(c, "cloth", cloth, n, integrator);
             bench_body::<f64>(c, "cloth", cloth, n, integrator);
         }
-        for integrator in [IntegratorKind::SymplecticEuler, IntegratorKind::ImplicitEuler] {
+        for integrator in
+            [IntegratorKind::SymplecticEuler, IntegratorKind::Rk4, IntegratorKind::ImplicitEuler]
+        {
             bench_body::<f32>(c, "fabric", fabric, n, integrator);
             bench_body::<f64>(c, "fabric", fabric, n, integrator);
         }
