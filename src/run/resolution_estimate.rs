@@ -52,30 +52,24 @@ pub(super) fn execute_with_resolution_estimate(compiled: &Compiled, control: &Co
     );
     let Outcome { mut recording, final_positions } = main;
     if let Some(fine) = final_positions {
+        let unavailable = |reason: String| (*ORDER_RANGE.start(), EstimateOutcome::Unavailable { reason });
+        let (order, outcome) =
+            match companions.iter().map(|c| c.result.as_ref()).collect::<Result<Vec<_>, _>>() {
+                Err(reason) => unavailable(reason.clone()),
+                Ok(coarse) => match (&compiled.coarser[..], &coarse[..]) {
+                    ([half, quarter], [(half_end, _), (quarter_end, _)]) => {
+                        estimate(&fine, [half, quarter], [half_end, quarter_end])
+                    }
+                    _ => unavailable("the scene has no coarser companions".into()),
+                },
+            };
         let error = ErrorEstimate {
             method: ErrorEstimateName::Resolution,
-            order: *ORDER_RANGE.start(),
-            outcome: EstimateOutcome::Unavailable { reason: String::new() },
+            order,
+            outcome,
             extra_wall_time_s: companions.iter().map(|c| c.wall_time_s).sum(),
             companion_step: None,
             equilibrium: None,
-        };
-        let error = match companions.iter().map(|c| c.result.as_ref()).collect::<Result<Vec<_>, _>>() {
-            Err(reason) => {
-                ErrorEstimate { outcome: EstimateOutcome::Unavailable { reason: reason.clone() }, ..error }
-            }
-            Ok(coarse) => match (&compiled.coarser[..], &coarse[..]) {
-                ([half, quarter], [(half_end, _), (quarter_end, _)]) => {
-                    let (order, outcome) = estimate(&fine, [half, quarter], [half_end, quarter_end]);
-                    ErrorEstimate { order, outcome, ..error }
-                }
-                _ => ErrorEstimate {
-                    outcome: EstimateOutcome::Unavailable {
-                        reason: "the scene has no coarser companions".into(),
-                    },
-                    ..error
-                },
-            },
         };
         recording.stats.error = Some(with_equilibrium(error, compiled, control, &recording, &fine));
     }
@@ -88,12 +82,9 @@ fn estimate(
     [half, quarter]: [&Coarser; 2],
     [half_end, quarter_end]: [&[DVec3]; 2],
 ) -> (f64, EstimateOutcome) {
-    let distances = |a: &mut dyn Iterator<Item = DVec3>, b: &mut dyn Iterator<Item = DVec3>| -> Vec<f64> {
-        a.zip(b).map(|(x, y)| x.distance(y)).collect()
-    };
-    let to_half = distances(&mut half.on_main.read(fine), &mut half_end.iter().copied());
-    let fine_to_half = distances(&mut quarter.on_main.read(fine), &mut quarter.on_finer.read(half_end));
-    let half_to_quarter = distances(&mut quarter.on_finer.read(half_end), &mut quarter_end.iter().copied());
+    let to_half = distances(half.on_main.read(fine), half_end.iter().copied());
+    let fine_to_half = distances(quarter.on_main.read(fine), quarter.on_finer.read(half_end));
+    let half_to_quarter = distances(quarter.on_finer.read(half_end), quarter_end.iter().copied());
     let (finer, coarser) = (root_mean_square(&fine_to_half), root_mean_square(&half_to_quarter));
     let ratio = (half.on_finer.spacing_ratio * quarter.on_finer.spacing_ratio).sqrt();
     let observed = (finer > 0.0 && coarser > 0.0).then(|| (coarser / finer).ln() / ratio.ln());
@@ -107,6 +98,11 @@ fn estimate(
         reliable: Some(shrink && observed.is_some_and(|p| ORDER_RANGE.contains(&p))),
     };
     (order, outcome)
+}
+
+/// The distance between each pair of points.
+fn distances(a: impl Iterator<Item = DVec3>, b: impl Iterator<Item = DVec3>) -> Vec<f64> {
+    a.zip(b).map(|(x, y)| x.distance(y)).collect()
 }
 
 fn largest(values: &[f64]) -> f64 {
