@@ -25,6 +25,7 @@ fn scenes() -> Vec<String> {
         format!(r#"{{"duration": 0.1, "dt": 0.001, "precision": "f32", "bodies": [{CLOTH}], "output": {{"fps": 30, "fields": {all_fields}}}}}"#),
         format!(r#"{{"duration": 0.05, "dt": 0.005, "integrator": "implicit_euler", "error_estimate": "richardson3", "bodies": [{CLOTH}], "output": {{"frames": "final"}}}}"#),
         format!(r#"{{"duration": 0.05, "dt": 0.001, "error_estimate": "none", "bodies": [{CLOTH}], "output": {{"frames": "none"}}}}"#),
+        r#"{"duration": 0.05, "dt": 0.005, "integrator": "implicit_euler", "error_estimate": "resolution", "bodies": [{"type": "cloth", "size": [0.5, 0.5], "resolution": [9, 9], "material": "cotton", "pin": [[0, 0], [8, 0]]}], "output": {"frames": "final"}}"#.to_string(),
         r#"{"duration": 1, "dt": 0.05, "bodies": [{"type": "chain", "count": 3, "mass": 0.001, "pin": [0], "spring": {"k": 100000}}], "output": {"fps": 100}}"#.to_string(),
         r#"{"duration": 20, "dt": 0.01, "integrator": "implicit_euler", "stop_at_rest": 0.001, "bodies": [{"type": "chain", "start": [0, 0, 0], "end": [0, -1, 0], "count": 5, "pin": [0], "spring": {"k": 100, "damping": 1}}], "output": {"fps": 2}}"#.to_string(),
         format!(
@@ -50,12 +51,28 @@ fn writing_what_was_read_gives_the_same_bytes() {
 
 #[test]
 fn a_run_at_rest_reads_back_its_distance_from_equilibrium() {
-    let scene = &scenes()[5];
+    let scene = &scenes()[6];
     let recording = run(scene);
     let equilibrium = recording.stats.error.as_ref().and_then(|e| e.equilibrium);
     assert!(equilibrium.is_some_and(|q| q.residual_relative.is_some()), "{scene}");
     let read = read_json(&json(&recording)).unwrap();
     assert_eq!(read.stats.error.and_then(|e| e.equilibrium), equilibrium);
+}
+
+#[test]
+fn a_spatial_estimate_reads_back_without_a_companion_step() {
+    let scene = &scenes()[4];
+    let recording = run(scene);
+    let error = recording.stats.error.as_ref().expect("an estimate");
+    assert_eq!((error.method.name(), error.companion_step), ("resolution", None), "{scene}");
+    assert!(
+        matches!(error.outcome, drape::run::EstimateOutcome::Estimate { observed_order: Some(_), .. }),
+        "{error:?}"
+    );
+    let written = json(&recording);
+    let value: serde_json::Value = serde_json::from_slice(&written).unwrap();
+    assert!(value["stats"]["error"].get("companion_step").is_none(), "{}", value["stats"]["error"]);
+    assert_eq!(read_json(&written).unwrap().stats.error.as_ref(), Some(error));
 }
 
 #[test]

@@ -86,6 +86,18 @@ fn cases() -> Vec<Case> {
         scene("tolerance above 1", &top(r#", "solver": {"tolerance": 2}"#), 422, "/solver/tolerance"),
         scene("zero iterations", &top(r#", "solver": {"max_iterations": 0}"#), 422, "/solver/max_iterations"),
         scene("unknown error estimate", &top(r#", "error_estimate": "exact""#), 422, "/error_estimate"),
+        scene(
+            "spatial estimate of a chain",
+            &top(r#", "error_estimate": "resolution""#),
+            422,
+            "/error_estimate",
+        ),
+        scene(
+            "spatial estimate of a cloth without a material",
+            &cloth("").replace(r#""bodies""#, r#""error_estimate": "resolution", "bodies""#),
+            422,
+            "/error_estimate",
+        ),
         scene("zero rest speed", &top(r#", "stop_at_rest": 0"#), 422, "/stop_at_rest"),
         scene("no bodies", r#"{"duration": 1, "bodies": []}"#, 422, "/bodies"),
         scene("body not an object", &with_body("5"), 422, "/bodies/0"),

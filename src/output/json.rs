@@ -241,14 +241,12 @@ impl Serialize for StatsView<'_> {
             map.serialize_entry("linear_solver", &solver)?;
         }
         if let Some(e) = &st.error {
-            let method = match e.method {
-                crate::scene::ErrorEstimateName::Richardson3 => "richardson3",
-                _ => "richardson",
-            };
             let mut error = serde_json::json!({
-                "method": method, "order": e.order, "companion_step": e.companion_step.name(),
-                "extra_wall_time_s": e.extra_wall_time_s,
+                "method": e.method.name(), "order": e.order, "extra_wall_time_s": e.extra_wall_time_s,
             });
+            if let Some(step) = e.companion_step {
+                error["companion_step"] = step.name().into();
+            }
             match &e.outcome {
                 EstimateOutcome::Estimate { max, rms, observed_order, reliable } => {
                     error["max"] = (*max).into();

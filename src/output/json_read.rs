@@ -357,16 +357,22 @@ fn read_error(e: &Value) -> Result<ErrorEstimate, ReadError> {
         method: named(
             "stats.error.method",
             &e["method"],
-            &[("richardson", ErrorEstimateName::Richardson), ("richardson3", ErrorEstimateName::Richardson3)],
+            &[
+                ("richardson", ErrorEstimateName::Richardson),
+                ("richardson3", ErrorEstimateName::Richardson3),
+                ("resolution", ErrorEstimateName::Resolution),
+            ],
         )?,
-        order: count("stats.error.order", &e["order"])? as u32,
+        order: number("stats.error.order", &e["order"])?,
         outcome,
         extra_wall_time_s: number("stats.error.extra_wall_time_s", &e["extra_wall_time_s"])?,
-        companion_step: named(
-            "stats.error.companion_step",
-            &e["companion_step"],
-            &[("doubled", CompanionStep::Doubled), ("halved", CompanionStep::Halved)],
-        )?,
+        companion_step: optional(e.get("companion_step"), |step| {
+            named(
+                "stats.error.companion_step",
+                step,
+                &[("doubled", CompanionStep::Doubled), ("halved", CompanionStep::Halved)],
+            )
+        })?,
         equilibrium: optional(e.get("equilibrium"), read_equilibrium)?,
     })
 }

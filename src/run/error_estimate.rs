@@ -1,4 +1,5 @@
-//! A run's estimate of its own error, by Richardson extrapolation.
+//! A run's estimate of its own error, by Richardson extrapolation in the time step (the spatial
+//! estimate, `resolution`, is [`resolution_estimate`](super::resolution_estimate)'s).
 //!
 //! A companion run of the same scene at a step `H ≈ 2h` ends at the same time; for an integrator
 //! of order `p` the error of the run at `h` is about `|x_h - x_H| / (r^p - 1)` with `r = H / h`,
@@ -30,7 +31,7 @@ use std::time::Instant;
 
 use glam::DVec3;
 
-use super::{Control, Outcome, Recording, Status, simulate};
+use super::{Control, Outcome, Recording, Status, resolution_estimate, simulate};
 use crate::scene::{Compiled, ErrorEstimateName};
 use crate::solver::{Equilibrium, IntegratorKind, equilibrium, stable_step};
 
@@ -39,14 +40,16 @@ use crate::solver::{Equilibrium, IntegratorKind, equilibrium, stable_step};
 pub struct ErrorEstimate {
     /// How it was estimated.
     pub method: ErrorEstimateName,
-    /// The integrator's order `p` the extrapolation assumes.
-    pub order: u32,
+    /// The order `p` the extrapolation uses: the integrator's for `richardson` and
+    /// `richardson3`, the observed one within [`ORDER_RANGE`](crate::run::ORDER_RANGE) for `resolution`.
+    pub order: f64,
     /// The estimate, or why there is none.
     pub outcome: EstimateOutcome,
     /// Wall time of the companion runs, in seconds.
     pub extra_wall_time_s: f64,
-    /// Whether the companions took larger or smaller steps than the run.
-    pub companion_step: CompanionStep,
+    /// Whether the companions took larger or smaller steps than the run (`None` for
+    /// `resolution`, whose companions take the run's step).
+    pub companion_step: Option<CompanionStep>,
     /// For a run that stopped at rest: how far its final state is from static equilibrium.
     pub equilibrium: Option<Equilibrium>,
 }
@@ -94,9 +97,11 @@ pub enum EstimateOutcome {
         max: f64,
         /// Root-mean-square per-particle error, in metres.
         rms: f64,
-        /// With `richardson3`: the order the three runs show (`None` if the runs agree exactly).
+        /// With `richardson3` and `resolution`: the order the three runs show (`None` if the
+        /// runs agree exactly).
         observed_order: Option<f64>,
-        /// With `richardson3`: whether the observed order is within 30 % of the assumed one.
+        /// With `richardson3`: whether the observed order is within 30 % of the assumed one;
+        /// with `resolution`, whether it is within [`ORDER_RANGE`](crate::run::ORDER_RANGE) and the differences shrink.
         reliable: Option<bool>,
     },
     /// No estimate: a halved companion diverged too, or the companions were cancelled.
@@ -152,15 +157,26 @@ pub(super) fn execute_with_estimate(
     let Outcome { mut recording, final_positions } = main;
     if let Some(fine) = final_positions {
         let h = recording.stats.dt;
-        let mut error = estimate(compiled, method, &fine, h, &companions, spacing);
-        let interrupt = control.interrupt();
-        error.equilibrium = recording
-            .stats
-            .stopped_at_rest
-            .and_then(|t| equilibrium(&compiled.model, &compiled.config, &fine, t, &interrupt));
-        recording.stats.error = Some(error);
+        let error = estimate(compiled, method, &fine, h, &companions, spacing);
+        recording.stats.error = Some(with_equilibrium(error, compiled, control, &recording, &fine));
     }
     recording
+}
+
+/// The estimate with, for a run that stopped at rest, its distance from static equilibrium.
+pub(super) fn with_equilibrium(
+    mut error: ErrorEstimate,
+    compiled: &Compiled,
+    control: &Control,
+    recording: &Recording,
+    fine: &[DVec3],
+) -> ErrorEstimate {
+    let interrupt = control.interrupt();
+    error.equilibrium = recording
+        .stats
+        .stopped_at_rest
+        .and_then(|t| equilibrium(&compiled.model, &compiled.config, fine, t, &interrupt));
+    error
 }
 
 /// The companions' step for a run of `steps` steps, chosen before they run: halved when the
@@ -175,13 +191,16 @@ pub fn companion_step(compiled: &Compiled, method: ErrorEstimateName, steps: u64
 }
 
 /// The steps of the companions an estimate plans for a run of `compiled.steps` steps (0 without
-/// an estimate). A doubled companion that diverges all the same is followed by halved ones, at
+/// an estimate; for `resolution`, counted in steps of the run by the companions' share of its
+/// particles). A doubled companion that diverges all the same is followed by halved ones, at
 /// twice (six times, for `richardson3`) the run's steps more, which only the job's wall time
 /// bounds: it happens only where the stability bound did not foresee the divergence.
 pub fn planned_companion_steps(compiled: &Compiled) -> u64 {
     let method = compiled.error_estimate;
-    if method == ErrorEstimateName::None {
-        return 0;
+    match method {
+        ErrorEstimateName::None => return 0,
+        ErrorEstimateName::Resolution => return resolution_estimate::planned_steps(compiled),
+        _ => {}
     }
     companion_step(compiled, method, compiled.steps)
         .steps(method, compiled.steps)
@@ -220,16 +239,36 @@ fn doubled_step_is_unstable(compiled: &Compiled, method: ErrorEstimateName) -> b
         .is_some_and(|bound| dt <= bound && largest > bound)
 }
 
-/// A companion's end state, or why it has none, and its wall time.
-struct Companion {
-    result: Result<(Vec<DVec3>, f64), String>,
+/// A companion's end state and step, or why it has none, and its wall time.
+pub(super) struct Companion {
+    pub(super) result: Result<(Vec<DVec3>, f64), String>,
     diverged: bool,
-    wall_time_s: f64,
+    pub(super) wall_time_s: f64,
 }
 
 impl Companion {
-    fn failed() -> Self {
+    pub(super) fn failed() -> Self {
         Self { result: Err("the companion run failed".into()), diverged: false, wall_time_s: 0.0 }
+    }
+
+    /// Runs `coarse`, the companion `at` (in words: "at dt = 4.000e-4 s").
+    pub(super) fn run(coarse: &Compiled, control: &Control, at: &str) -> Self {
+        let started = Instant::now();
+        let Outcome { recording, final_positions } = simulate(coarse, control, false);
+        let result = match (recording.stats.status, final_positions) {
+            (Status::Succeeded, Some(positions)) => Ok((positions, coarse.config.dt)),
+            (Status::Diverged, _) => Err(match &recording.stats.diverged {
+                Some(d) => format!("the companion {at} diverged at step {} (t = {} s)", d.step, d.t),
+                None => format!("the companion {at} diverged"),
+            }),
+            (Status::Failed, _) => Err(format!(
+                "the companion {at} failed: {}",
+                recording.stats.failure.as_deref().unwrap_or("a stage met more than it may hold")
+            )),
+            _ => Err("the companion run was cancelled".into()),
+        };
+        let diverged = recording.stats.status == Status::Diverged;
+        Self { result, diverged, wall_time_s: started.elapsed().as_secs_f64() }
     }
 }
 
@@ -241,7 +280,6 @@ fn run_companion(
     steps: u64,
     duration: f64,
 ) -> Companion {
-    let started = Instant::now();
     let Some(coarse) = companion_steps.map(|n| compiled.companion(n, duration)) else {
         return Companion {
             result: Err(format!("the run has too many steps ({steps}) for a companion at half its step")),
@@ -249,25 +287,7 @@ fn run_companion(
             wall_time_s: 0.0,
         };
     };
-    let Outcome { recording, final_positions } = simulate(&coarse, control, false);
-    let result = match (recording.stats.status, final_positions) {
-        (Status::Succeeded, Some(positions)) => Ok((positions, coarse.config.dt)),
-        (Status::Diverged, _) => Err(match &recording.stats.diverged {
-            Some(d) => format!(
-                "the companion at dt = {:.3e} s diverged at step {} (t = {} s)",
-                coarse.config.dt, d.step, d.t
-            ),
-            None => format!("the companion at dt = {:.3e} s diverged", coarse.config.dt),
-        }),
-        (Status::Failed, _) => Err(format!(
-            "the companion at dt = {:.3e} s failed: {}",
-            coarse.config.dt,
-            recording.stats.failure.as_deref().unwrap_or("a stage met more than it may hold")
-        )),
-        _ => Err("the companion run was cancelled".into()),
-    };
-    let diverged = recording.stats.status == Status::Diverged;
-    Companion { result, diverged, wall_time_s: started.elapsed().as_secs_f64() }
+    Companion::run(&coarse, control, &format!("at dt = {:.3e} s", coarse.config.dt))
 }
 
 fn estimate(
@@ -303,10 +323,17 @@ fn estimate(
             EstimateOutcome::Estimate { max, rms: rms_difference * scale, observed_order, reliable }
         }
     };
-    ErrorEstimate { method, order, outcome, extra_wall_time_s, companion_step, equilibrium: None }
+    ErrorEstimate {
+        method,
+        order: f64::from(order),
+        outcome,
+        extra_wall_time_s,
+        companion_step: Some(companion_step),
+        equilibrium: None,
+    }
 }
 
-fn root_mean_square(values: &[f64]) -> f64 {
+pub(super) fn root_mean_square(values: &[f64]) -> f64 {
     if values.is_empty() {
         return 0.0;
     }

@@ -25,6 +25,7 @@ mod control;
 mod drape_coefficient;
 mod error_estimate;
 mod recording;
+mod resolution_estimate;
 mod schedule;
 
 use std::time::Instant;
@@ -38,6 +39,7 @@ pub use error_estimate::{
     CompanionStep, ErrorEstimate, EstimateOutcome, companion_step, planned_companion_steps,
 };
 pub use recording::{Diverged, Frames, Recording, Samples, Stats, Status};
+pub use resolution_estimate::ORDER_RANGE;
 
 use glam::DVec3;
 
@@ -54,6 +56,9 @@ const BATCH: u64 = 64;
 pub fn execute(compiled: &Compiled, control: &Control) -> Recording {
     parallel::install(|| match compiled.error_estimate {
         ErrorEstimateName::None => simulate(compiled, control, true).recording,
+        ErrorEstimateName::Resolution => {
+            resolution_estimate::execute_with_resolution_estimate(compiled, control)
+        }
         method => error_estimate::execute_with_estimate(compiled, control, method),
     })
 }

@@ -12,6 +12,7 @@ use std::sync::Arc;
 use glam::DVec3;
 
 use super::drape_tester::DrapeTester;
+use super::material_points::MaterialPoints;
 use super::placement::Placement;
 use super::types::MotionSpec;
 use super::types::{
@@ -80,6 +81,21 @@ pub struct Compiled {
     pub error_estimate: ErrorEstimateName,
     /// The drape tester the scene is, if it is one: the run then reports the drape coefficient.
     pub drape_tester: Option<DrapeTester>,
+    /// With `error_estimate: "resolution"`, the companions: the scene at about half and at about
+    /// a quarter of its resolution (empty otherwise).
+    pub coarser: Vec<Coarser>,
+}
+
+/// A companion of the spatial error estimate: the scene at a coarser resolution, run with the
+/// same step and to the same end (or to rest), and where its particles lie on the finer scenes.
+#[derive(Clone, Debug)]
+pub struct Coarser {
+    /// The coarser scene, recording nothing and estimating nothing.
+    pub compiled: Compiled,
+    /// Its particles as points of the scene one resolution finer.
+    pub on_finer: MaterialPoints,
+    /// Its particles as points of the scene the run is of.
+    pub on_main: MaterialPoints,
 }
 
 impl Compiled {
@@ -95,6 +111,7 @@ impl Compiled {
         companion.stop_at_rest = None;
         companion.error_estimate = ErrorEstimateName::None;
         companion.drape_tester = None;
+        companion.coarser = Vec::new();
         companion
     }
 }
@@ -167,6 +184,10 @@ impl Scene {
             pin_motions,
             max_self_collision_pairs: usize::MAX,
         };
+        let coarser = match self.error_estimate {
+            ErrorEstimateName::Resolution => self.coarser_companions(config.dt, steps),
+            _ => Vec::new(),
+        };
         Compiled {
             model,
             config,
@@ -179,7 +200,37 @@ impl Scene {
             stop_at_rest: self.stop_at_rest,
             error_estimate: self.error_estimate,
             drape_tester,
+            coarser,
         }
+    }
+
+    /// The companions of the spatial error estimate, at the run's step `dt` for its `steps`:
+    /// the same step keeps the time error out of the difference. Each keeps `stop_at_rest`, so
+    /// that a run to rest is compared with its companions at their own rest.
+    fn coarser_companions(&self, dt: f64, steps: u64) -> Vec<Coarser> {
+        let Some(half) = self.coarsened() else { return Vec::new() };
+        let Some(quarter) = half.coarsened() else { return Vec::new() };
+        let companion = |scene: &Scene| {
+            let mut compiled = scene.compile();
+            compiled.config.dt = dt;
+            compiled.steps = steps;
+            compiled.output =
+                Output { frames: FrameSelection::None, fields: Vec::new(), ..self.output.clone() };
+            compiled.drape_tester = None;
+            compiled
+        };
+        vec![
+            Coarser {
+                compiled: companion(&half),
+                on_finer: MaterialPoints::between(&half, self),
+                on_main: MaterialPoints::between(&half, self),
+            },
+            Coarser {
+                compiled: companion(&quarter),
+                on_finer: MaterialPoints::between(&quarter, &half),
+                on_main: MaterialPoints::between(&quarter, self),
+            },
+        ]
     }
 
     fn automatic_dt(&self, model: &Model, integrator: IntegratorKind) -> f64 {

@@ -319,3 +319,54 @@ fn the_widest_valid_scene_starts_finite_in_single_precision() {
     assert!(positions.map(|x| x as f32).all(f32::is_finite));
     assert!(compiled.model.masses.iter().all(|&m| (m as f32).is_normal()));
 }
+
+/// The one problem a scene with `error_estimate: "resolution"` gets, at `/error_estimate`.
+fn resolution_refusal(bodies: Value) -> String {
+    let error =
+        scene(json!({"duration": 1.0, "error_estimate": "resolution", "bodies": bodies})).unwrap_err();
+    let errors = error.field_errors();
+    assert_eq!(errors.len(), 1, "{errors:?}");
+    assert_eq!(errors[0].pointer, "/error_estimate");
+    errors[0].detail.clone()
+}
+
+#[test]
+fn the_spatial_estimate_is_refused_with_the_reason_for_bodies_that_do_not_keep_their_material() {
+    let material =
+        |resolution: usize| json!({"type": "cloth", "resolution": [resolution, 12], "material": "cotton"});
+    let chain = resolution_refusal(json!([material(9), {"type": "chain"}]));
+    assert!(chain.contains("/bodies/1 is a chain"), "{chain}");
+    let springs = resolution_refusal(json!([{"type": "cloth", "resolution": [17, 17]}]));
+    assert!(springs.contains("/bodies/0 has spring constants"), "{springs}");
+    let small = resolution_refusal(json!([material(8)]));
+    assert!(small.contains("at least 9 particles") && small.contains("[8, 12]"), "{small}");
+    let disk = resolution_refusal(
+        json!([{"type": "cloth", "shape": "disk", "resolution": [7, 7], "material": "cotton"}]),
+    );
+    assert!(disk.contains("at least 4 rings") && disk.contains("has 3"), "{disk}");
+    // A material whose particles would be too heavy at a quarter of the resolution is refused
+    // for its companion, not for itself.
+    let heavy = json!({"type": "cloth", "size": [1e6, 1e6], "resolution": [9, 9],
+        "material": {"density": 1e19, "stretch": 100, "shear": 1, "bending": 1}});
+    assert!(scene(json!({"duration": 1.0, "error_estimate": "none", "bodies": [heavy]})).is_ok());
+    let companion = resolution_refusal(json!([heavy]));
+    assert!(
+        companion.contains("the companion at resolution [3, 3]") && companion.contains("particle mass"),
+        "{companion}"
+    );
+    // Cloths of a material, rectangles and disks, are accepted, and compile with their companions.
+    let accepted = scene(json!({"duration": 1.0, "error_estimate": "resolution",
+        "bodies": [material(10), {"type": "cloth", "shape": "disk", "resolution": [9, 9], "material": "denim"}]}))
+    .unwrap();
+    let compiled = accepted.compile();
+    let particles: Vec<usize> = compiled.coarser.iter().map(|c| c.compiled.model.particle_count()).collect();
+    // [10, 12] → [5, 6] → [3, 3]; 4 rings → 2 → 1: 61 → 19 → 7 particles.
+    assert_eq!(particles, [5 * 6 + 19, 3 * 3 + 7]);
+    assert_eq!(compiled.coarser[1].on_main.len(), 3 * 3 + 7);
+    assert!(
+        compiled
+            .coarser
+            .iter()
+            .all(|c| c.compiled.config.dt == compiled.config.dt && c.compiled.steps == compiled.steps)
+    );
+}

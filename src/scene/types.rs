@@ -131,8 +131,23 @@ pub enum ErrorEstimateName {
     Richardson,
     /// Companions at twice and four times the step, which also measure the order.
     Richardson3,
+    /// Companions at half and a quarter of the resolution, which measure the spatial error and
+    /// its order (every body a cloth with a `material`).
+    Resolution,
     /// No estimate.
     None,
+}
+
+impl ErrorEstimateName {
+    /// The name the contract uses.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Richardson => "richardson",
+            Self::Richardson3 => "richardson3",
+            Self::Resolution => "resolution",
+            Self::None => "none",
+        }
+    }
 }
 
 /// Settings of implicit Euler's conjugate-gradient solve.

@@ -6,8 +6,8 @@ use super::fabrics::FabricSpec;
 use super::placement::{Placement, ROTATION_NORM_TOLERANCE};
 use super::types::MotionSpec;
 use super::types::{
-    BendingModelName, Body, BodyMaterial, ClothShape, ColliderSpec, Field, Format, FrameSelection,
-    GridSprings, Output, Scene, SpringSpec, WindSpec,
+    BendingModelName, Body, BodyMaterial, ClothShape, ColliderSpec, ErrorEstimateName, Field, Format,
+    FrameSelection, GridSprings, Output, Scene, SpringSpec, WindSpec,
 };
 
 /// Collects problems, each at its JSON Pointer.
@@ -259,6 +259,9 @@ impl Scene {
             }
         }
         p.0.extend(self.output.format_problems(self.output.format));
+        if self.error_estimate == ErrorEstimateName::Resolution && p.0.is_empty() {
+            p.0.extend(self.resolution_problems());
+        }
         p.0
     }
 }

@@ -515,12 +515,17 @@ export interface components {
             stop_at_rest?: number | null;
             /**
              * @description `richardson`: a companion run at twice the step estimates the error; `richardson3`: a
-             *     third at four times the step also measures the order; `none`. Companions count
-             *     toward the work budget.
+             *     third at four times the step also measures the order; `resolution`: companions at half
+             *     and a quarter of the resolution (each side's n particles become (n + 1) / 2, a disk's
+             *     rings (rings + 1) / 2), with the run's step and to the same end or to rest, estimate
+             *     the spatial error and measure its order. `resolution` needs every body to be a cloth
+             *     with a `material` and at least 9 particles along each side (a disk at least 4 rings),
+             *     and is refused otherwise. `none`. Companions count toward the work budget
+             *     (`resolution`'s cost about 5/16 of the run).
              * @default richardson
              * @enum {string}
              */
-            error_estimate: "richardson" | "richardson3" | "none";
+            error_estimate: "richardson" | "richardson3" | "resolution" | "none";
             bodies: components["schemas"]["Body"][];
             /** @description Fixed shapes the particles cannot enter, resolved in this order. */
             colliders?: components["schemas"]["Collider"][];
@@ -1089,21 +1094,22 @@ export interface components {
             drape_coefficient?: number;
             /** @description With status `failed`: why (self-collision met more pairs than the run may hold). */
             failure?: string;
-            /** @description The run's estimate of its own position error at the final time, in metres. */
+            /** @description The run's estimate of its own position error at the final time, in metres: of its time step (richardson, richardson3), or of its resolution against the continuum cloth (resolution: the run and its companions at half and a quarter of the resolution are compared at the coarser companion's material points, the order they show is observed_order, and max and rms are the run's distance from its half companion over r^order - 1, r the spacing ratio, 2 for grids of 2^k + 1 particles). */
             error?: {
                 /** @enum {string} */
-                method: "richardson" | "richardson3";
+                method: "richardson" | "richardson3" | "resolution";
                 /**
-                 * @description The companions' step against the run's: doubled (and quadrupled for richardson3), or halved (and quartered) when the doubled step would pass the stability bound, the run has too few steps, or a doubled companion diverged.
+                 * @description The companions' step against the run's: doubled (and quadrupled for richardson3), or halved (and quartered) when the doubled step would pass the stability bound, the run has too few steps, or a doubled companion diverged. Absent for resolution, whose companions take the run's step.
                  * @enum {string}
                  */
-                companion_step: "doubled" | "halved";
-                /** @description The integrator order the extrapolation assumes. */
+                companion_step?: "doubled" | "halved";
+                /** @description The order the extrapolation uses: the integrator's for richardson and richardson3; for resolution the observed order held to [0.5, 4]. */
                 order: number;
+                /** @description richardson3: whether the observed order is within 30 % of the integrator's. resolution: whether the observed order is within [0.5, 4] and the differences shrink from the coarser pair of resolutions to the finer. */
+                reliable?: boolean;
                 max?: components["schemas"]["Measure"];
                 rms?: components["schemas"]["Measure"];
                 observed_order?: components["schemas"]["Measure"];
-                reliable?: boolean;
                 /** @description Why there is no estimate (a halved companion diverged too, or the run was cancelled). */
                 unavailable?: string;
                 extra_wall_time_s: number;
