@@ -17,7 +17,7 @@
 
 use crate::solver::constraints::contacts::Surface;
 use crate::solver::constraints::contacts::TriangleSurface;
-use crate::solver::constraints::contacts::nearby_triangles::{CAPACITY, KEEP, NearbyTriangles, REACH};
+use crate::solver::constraints::contacts::nearby_triangles::{CAPACITY, KEEP, Kept, NearbyTriangles, REACH};
 use crate::solver::constraints::contacts::surface_topology::Topology;
 use crate::solver::constraints::contacts::triangle::Feature;
 use crate::solver::constraints::contacts::triangle_bvh::{Nearest, TriangleBvh};
@@ -118,7 +118,8 @@ impl<T: Real> MeshShape<T> {
         let enters = |t: usize, d: Vec3<T>| !closed || d.dot(self.normals[t]) < T::ZERO;
         let crossing = match kept {
             _ if d.length_squared() == T::ZERO => None,
-            Some(count) => self.bvh.first_crossing_among(&slots[..count], start, end, enters),
+            Some(Kept { clear: true, .. }) => None,
+            Some(Kept { count, .. }) => self.bvh.first_crossing_among(&slots[..count], start, end, enters),
             None => self.bvh.first_crossing(start, end, enters),
         };
         let mut end = end;
@@ -131,7 +132,7 @@ impl<T: Real> MeshShape<T> {
         }
         // A stop at a crossing can leave the kept triangles' reach: those near it are gathered.
         let near = match (kept, nearby) {
-            (Some(count), _) if crossed.is_none() => Some(count),
+            (Some(Kept { count, .. }), _) if crossed.is_none() => Some(count),
             (_, Some((nearby, p))) => {
                 nearby.gather(p, end, &self.bvh, self.thickness * T::from_f64(REACH), &mut slots)
             }

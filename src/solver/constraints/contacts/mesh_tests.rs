@@ -170,7 +170,8 @@ fn the_hierarchy_finds_what_a_search_of_every_triangle_finds() {
             .map(|&tri| (p - triangle::nearest_point(tri, p).0).length_squared())
             .fold(f64::INFINITY, f64::min);
         let found = bvh.nearest(p, f64::INFINITY).unwrap();
-        assert_eq!(found.distance_squared, brute, "{p:?}");
+        // Equal but for rounding: the planes of a triangle answer a point over its face.
+        assert!((found.distance_squared - brute).abs() <= 1e-12 * brute, "{p:?}: {found:?} against {brute}");
         // A radius short of the nearest distance finds nothing.
         assert!(bvh.nearest(p, 0.999 * brute.sqrt()).is_none());
 
@@ -246,7 +247,7 @@ fn kept_triangles_give_the_hierarchys_contacts(
             let mut slots = [0; nearby_triangles::CAPACITY];
             let keep = thickness * nearby_triangles::KEEP;
             let kept = nearby.kept(p, x, end, keep, &mut slots);
-            kept_steps += usize::from(kept.is_some_and(|count| count > 0));
+            kept_steps += usize::from(kept.is_some_and(|k| k.count > 0));
             let with_kept = shape.contact(x, end, Some((&nearby, p)));
             let walked = shape.contact(x, end, None);
             // Equal but for rounding: at an edge the two triangles give its point each its own way.
@@ -284,6 +285,51 @@ fn the_triangles_kept_near_a_particle_give_the_contacts_the_hierarchy_gives() {
     let down = |_: Vec3<f64>| Vec3::new(0.0, -0.2, 0.0);
     let share = kept_triangles_give_the_hierarchys_contacts(&bumpy, thickness, above, down);
     assert!(share > 0.2, "only {share} of the steps on the sheet kept their triangles");
+}
+
+#[test]
+fn a_particle_resting_on_a_mesh_meets_only_its_nearest_triangle_and_crosses_none() {
+    // Particles resting on a bumpy sheet, sinking a little each step and put back, as a cloth
+    // lying on a mesh is: after the first step each meets one kept triangle and tests no
+    // crossing, and its contact is still the one the whole hierarchy gives.
+    let thickness = 0.02;
+    let mut bumpy = sheet(0.0, 2.0, 24);
+    for v in &mut bumpy.vertices {
+        v.y = 0.05 * (7.0 * v.x).sin() * (5.0 * v.z).cos();
+    }
+    let shape = mesh::MeshShape::<f64>::new(&bumpy, thickness);
+    let (particles, steps) = (64, 50);
+    let nearby = nearby_triangles::NearbyTriangles::new(particles);
+    let mut seed = 3;
+    let (mut alone, mut touching) = (0, 0);
+    for p in 0..particles {
+        let (x, z) = (0.8 * uniform(&mut seed), 0.8 * uniform(&mut seed));
+        let over = Vec3::new(x, 0.05 * (7.0 * x).sin() * (5.0 * z).cos() + 0.5 * thickness, z);
+        let mut x = shape.inside(over).unwrap().point;
+        for step in 0..steps {
+            let slide = Vec3::new(uniform(&mut seed), 0.0, uniform(&mut seed)) * 1e-6;
+            let end = x + slide - Vec3::new(0.0, 1e-4 * thickness, 0.0);
+            let mut slots = [0; nearby_triangles::CAPACITY];
+            let kept = nearby.kept(p, x, end, thickness * nearby_triangles::KEEP, &mut slots);
+            alone += usize::from(kept == Some(nearby_triangles::Kept { count: 1, clear: true }));
+            let with_kept = shape.contact(x, end, Some((&nearby, p)));
+            let walked = shape.contact(x, end, None);
+            let same = match (with_kept, walked) {
+                (Some(a), Some(b)) => {
+                    (a.point - b.point).length() < 1e-12 && (a.normal - b.normal).length() < 1e-12
+                }
+                (a, b) => a == b,
+            };
+            assert!(same, "particle {p}, step {step}: {with_kept:?} against {walked:?}");
+            touching += usize::from(walked.is_some());
+            x = walked.map_or(end, |s| s.point);
+        }
+    }
+    let share = alone as f64 / (particles * (steps - 1)) as f64;
+    // The others rest over a ridge's edge or corner, where two triangles are about as near
+    // (0.87 of the steps met one triangle alone when this was written).
+    assert!(share > 0.8, "only {share} of the resting steps met one triangle alone");
+    assert_eq!(touching, particles * steps, "every step sinks into the sheet");
 }
 
 #[test]

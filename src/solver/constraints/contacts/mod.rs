@@ -27,7 +27,8 @@
 //! Each shape has its own file: the test "is this point inside, and where is the nearest surface
 //! point", the cheap branch-free test it starts with (`reaches`, and for the sphere `dips`), and
 //! the signed distance used to check results. A step tests a block of particles against a shape
-//! with the cheap test in vector lanes and gives only those that pass the exact one; particles
+//! with the cheap test in vector lanes and gives only those that pass the exact one (a fixed
+//! plane, whose exact test is as cheap, resolves the whole block in lanes); particles
 //! are independent, so a large state is resolved in bands on the solver's threads, with the same
 //! result.
 
@@ -442,6 +443,22 @@ impl<T: Real> Contacts<T> {
         for block in (0..count).step_by(LANES) {
             let lanes = LANES.min(count - block);
             for c in &self.colliders {
+                if let (ShapeIn::Plane(plane), None, LANES) = (&c.shape, c.moving, lanes) {
+                    let (positions, velocities) = (
+                        band.positions.each_mut().map(|a| &mut **a),
+                        band.velocities.each_mut().map(|a| &mut **a),
+                    );
+                    let (friction, restitution) = (c.friction, c.restitution);
+                    touched |= plane.resolve_lanes(
+                        positions,
+                        velocities,
+                        band.inverse_masses,
+                        block,
+                        friction,
+                        restitution,
+                    );
+                    continue;
+                }
                 // A moving collider's particles are seen from its frame one by one.
                 let candidates = if lanes == LANES && c.moving.is_none() {
                     c.shape.reaches_lanes(band.start, band.positions.each_ref().map(|a| &**a), block)
@@ -475,17 +492,21 @@ impl<T: Real> Contacts<T> {
 
 /// The velocity change of a contact with outward unit normal `n`: restitution on the approaching
 /// normal part, Coulomb friction on the tangential part. A separating particle keeps its velocity.
-#[inline]
+///
+/// Written without branches, so that a block of particles takes it in vector lanes
+/// ([`plane::Plane::resolve_lanes`]): every quantity is computed and the ones that do not apply
+/// are discarded, never used.
+#[inline(always)]
 pub(crate) fn respond<T: Real>(v: &mut Vec3<T>, n: Vec3<T>, friction: T, restitution: T) {
     let normal_speed = v.dot(n);
-    if normal_speed >= T::ZERO {
-        return;
-    }
     let normal_change = -(T::ONE + restitution) * normal_speed;
     let tangential = *v - n * normal_speed;
-    let tangential_speed = tangential.length();
+    let tangential_squared = tangential.length_squared();
     let slowing = friction * normal_change;
-    // Scaling rather than normalising keeps a particle with no tangential speed finite.
-    let keep = if tangential_speed > slowing { T::ONE - slowing / tangential_speed } else { T::ZERO };
-    *v = tangential * keep - n * (restitution * normal_speed);
+    // Scaling rather than normalising keeps a particle with no tangential speed finite: the
+    // quotient is kept only when the tangential speed is larger than the slowing, so not zero.
+    let slides = tangential_squared > slowing * slowing;
+    let keep = if slides { T::ONE - slowing / tangential_squared.sqrt() } else { T::ZERO };
+    let responded = tangential * keep - n * (restitution * normal_speed);
+    *v = if normal_speed < T::ZERO { responded } else { *v };
 }

@@ -12,6 +12,13 @@
 //! gathered anew. The arrays are made once with the collider's stage; anchors are kept in `f32`
 //! in either precision, and the triangles are gathered around the anchor as kept.
 //!
+//! A particle that stays very near its anchor (one resting on the mesh) needs less still. The
+//! anchor's distance to the nearest triangle, `d₁`, and to the next nearest, `d₂` (at least
+//! `REACH`), are kept with it. A path within `d₁` of the anchor meets no triangle, so it crosses
+//! none; and an end within `(d₂ - d₁) / 2` of the anchor is nearer to the anchor's nearest
+//! triangle than to any other (distances change no faster than the point moves), so that
+//! triangle alone is the one to test.
+//!
 //! Each particle's entries are read and written only by the band of particles that holds it:
 //! relaxed atomics (plain loads and stores) let the bands share the arrays without cutting them.
 
@@ -30,11 +37,27 @@ pub(super) const KEEP: f64 = 0.5;
 pub(super) const REACH: f64 = 1.6;
 /// The count of a particle with nothing usable gathered.
 const NONE: u8 = u8::MAX;
+/// The share of the distances `d₁` and `(d₂ - d₁) / 2` a path is held to, so that rounding never
+/// takes it to the limit.
+const SAFETY: f64 = 0.99;
+
+/// The triangles kept for a particle's path, as [`NearbyTriangles::kept`] gives them.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) struct Kept {
+    /// How many slots were copied: every triangle gathered, or only the one that can be nearest.
+    pub count: usize,
+    /// Whether the path stays nearer to the anchor than any triangle is, so that it crosses none.
+    pub clear: bool,
+}
 
 /// The triangles near each particle, by their slots in the hierarchy's leaf order.
 #[derive(Debug)]
 pub(super) struct NearbyTriangles {
     anchors: Vec<[AtomicU32; 3]>,
+    /// Per particle, as `f32` bits: the square of the distance within which its path crosses
+    /// nothing, the square of the distance within which its end's nearest triangle is the
+    /// anchor's, and the slot of that triangle.
+    bounds: Vec<[AtomicU32; 3]>,
     /// How many of a particle's slots are in use, or [`NONE`].
     counts: Vec<AtomicU8>,
     /// [`CAPACITY`] slots per particle.
@@ -46,13 +69,15 @@ impl NearbyTriangles {
     pub fn new(particles: usize) -> Self {
         Self {
             anchors: (0..particles).map(|_| Default::default()).collect(),
+            bounds: (0..particles).map(|_| Default::default()).collect(),
             counts: (0..particles).map(|_| AtomicU8::new(NONE)).collect(),
             slots: (0..particles * CAPACITY).map(|_| AtomicU32::new(0)).collect(),
         }
     }
 
-    /// The triangles gathered for particle `p`, copied into `slots`, when its path from `start`
-    /// to `end` stays within `keep` of its anchor: how many there are.
+    /// The triangles gathered for particle `p` that its path from `start` to `end` can meet,
+    /// copied into `slots`, when the path stays within `keep` of its anchor: all of them, or
+    /// only the anchor's nearest when the path crosses none and ends that near the anchor.
     #[inline]
     pub fn kept<T: Real>(
         &self,
@@ -61,23 +86,29 @@ impl NearbyTriangles {
         end: Vec3<T>,
         keep: T,
         slots: &mut [u32; CAPACITY],
-    ) -> Option<usize> {
+    ) -> Option<Kept> {
         let count = self.counts[p].load(Relaxed);
         if count == NONE {
             return None;
         }
         let anchor = self.anchor(p);
-        let keep_squared = keep * keep;
-        let near = |x: Vec3<T>| (x - anchor).length_squared() <= keep_squared;
-        if !(near(start) && near(end)) {
+        let (from, to) = ((start - anchor).length_squared(), (end - anchor).length_squared());
+        let near = from.max(to) <= keep * keep;
+        if !near {
             return None;
+        }
+        let [clear, settled, nearest] = self.bounds[p].each_ref().map(|b| b.load(Relaxed));
+        let clear = from.max(to) < T::from_f64(f32::from_bits(clear) as f64);
+        if clear && count > 0 && to < T::from_f64(f32::from_bits(settled) as f64) {
+            slots[0] = nearest;
+            return Some(Kept { count: 1, clear });
         }
         let count = count as usize;
         let kept = &self.slots[p * CAPACITY..p * CAPACITY + count];
         for (slot, kept) in slots.iter_mut().zip(kept) {
             *slot = kept.load(Relaxed);
         }
-        Some(count)
+        Some(Kept { count, clear })
     }
 
     /// Gathers the triangles of `bvh` within `reach` of `at` for particle `p`, and copies them
@@ -111,7 +142,31 @@ impl NearbyTriangles {
             kept.store(slot, Relaxed);
         }
         self.counts[p].store(count as u8, Relaxed);
+        self.bound(p, bvh, &slots[..count], reach);
         Some(count)
+    }
+
+    /// Keeps particle `p`'s bounds, from the distances of its anchor to the triangles gathered
+    /// within `reach` of it (every triangle nearer than `reach`).
+    fn bound<T: Real>(&self, p: usize, bvh: &TriangleBvh<T>, slots: &[u32], reach: T) {
+        let anchor = self.anchor::<T>(p);
+        let (mut nearest, mut first, mut second) = (0, reach, reach);
+        for &slot in slots {
+            let distance = bvh.distance_squared(slot, anchor).sqrt();
+            if distance < first {
+                (nearest, first, second) = (slot, distance, first);
+            } else if distance < second {
+                second = distance;
+            }
+        }
+        let safety = T::from_f64(SAFETY);
+        let clear = first * safety;
+        let settled = (second - first) * T::from_f64(0.5) * safety;
+        let bits = |x: T| (x.to_f64() as f32).to_bits();
+        let values = [bits(clear * clear), bits(settled * settled), nearest];
+        for (kept, value) in self.bounds[p].iter().zip(values) {
+            kept.store(value, Relaxed);
+        }
     }
 
     fn anchor<T: Real>(&self, p: usize) -> Vec3<T> {

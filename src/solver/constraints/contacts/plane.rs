@@ -2,7 +2,8 @@
 
 use glam::DVec3;
 
-use super::Surface;
+use super::{Surface, respond};
+use crate::solver::forces::spring_blocks::LANES;
 use crate::solver::math::real::Real;
 use crate::solver::math::vec3::Vec3;
 
@@ -33,5 +34,48 @@ impl<T: Real> Plane<T> {
     pub fn inside(&self, x: Vec3<T>) -> Option<Surface<T>> {
         let depth = self.signed_distance(x);
         self.reaches(x).then(|| Surface { point: x - self.normal * depth, normal: self.normal })
+    }
+
+    /// Resolves the contacts of the [`LANES`] particles from `first` side by side, in vector
+    /// lanes with no branch: a lane whose particle is free and touches takes the point
+    /// [`inside`](Self::inside) gives and the velocity [`respond`] gives, the same values as
+    /// one particle at a time; the others keep theirs. Returns whether any particle was touched.
+    #[inline(always)]
+    pub fn resolve_lanes(
+        &self,
+        positions: [&mut [T]; 3],
+        velocities: [&mut [T]; 3],
+        inverse_masses: &[T],
+        first: usize,
+        friction: T,
+        restitution: T,
+    ) -> bool {
+        fn block<T>(axis: &mut [T], first: usize) -> &mut [T; LANES] {
+            (&mut axis[first..first + LANES]).try_into().expect("a whole block")
+        }
+        let (mut x, mut v) = (positions.map(|a| block(a, first)), velocities.map(|a| block(a, first)));
+        let inverse_masses: &[T; LANES] =
+            inverse_masses[first..first + LANES].try_into().expect("a whole block");
+        // Computed from copies into arrays and written back after, so that the loop is one
+        // vector instruction wide.
+        let (mut out, mut hits) = ([[T::ZERO; LANES]; 6], [false; LANES]);
+        for lane in 0..LANES {
+            let at = Vec3::new(x[0][lane], x[1][lane], x[2][lane]);
+            let depth = self.signed_distance(at);
+            let hit = (depth <= T::ZERO) & (inverse_masses[lane] != T::ZERO);
+            let onto = at - self.normal * depth;
+            let mut velocity = Vec3::new(v[0][lane], v[1][lane], v[2][lane]);
+            respond(&mut velocity, self.normal, friction, restitution);
+            let pick = |touched: Vec3<T>, kept: Vec3<T>| if hit { touched } else { kept };
+            let (onto, velocity) =
+                (pick(onto, at), pick(velocity, Vec3::new(v[0][lane], v[1][lane], v[2][lane])));
+            (out[0][lane], out[1][lane], out[2][lane]) = (onto.x, onto.y, onto.z);
+            (out[3][lane], out[4][lane], out[5][lane]) = (velocity.x, velocity.y, velocity.z);
+            hits[lane] = hit;
+        }
+        for (axis, values) in x.iter_mut().chain(v.iter_mut()).zip(&out) {
+            **axis = *values;
+        }
+        hits.into_iter().fold(false, |any, hit| any | hit)
     }
 }

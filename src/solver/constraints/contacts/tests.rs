@@ -295,6 +295,11 @@ fn single_precision_contacts_hold_as_well() {
 
 #[test]
 fn particles_resolved_in_bands_and_lanes_end_as_each_resolved_alone() {
+    resolved_in_bands_and_lanes_as_alone::<f32>();
+    resolved_in_bands_and_lanes_as_alone::<f64>();
+}
+
+fn resolved_in_bands_and_lanes_as_alone<T: Real>() {
     // Thousands of particles moving through and past every kind of shape (enough for two bands,
     // and a count that leaves a partial block), some pinned: the banded, laned pass must give
     // every particle the bits of the plain loop over particles and colliders.
@@ -314,18 +319,18 @@ fn particles_resolved_in_bands_and_lanes_end_as_each_resolved_alone() {
         (seed >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
     };
     let mut point = || DVec3::new(random(), random(), random());
-    let start: Vectors<f64> = (0..n).map(|_| Vec3::from_dvec3(point())).collect();
+    let start: Vectors<T> = (0..n).map(|_| Vec3::from_dvec3(point())).collect();
     let state = State {
         positions: start.iter().map(|x| x + Vec3::from_dvec3(point() * 0.3)).collect(),
         velocities: (0..n).map(|_| Vec3::from_dvec3(point())).collect(),
     };
-    let inverse_masses: Vec<f64> = (0..n).map(|p| if p % 97 == 0 { 0.0 } else { 1.0 }).collect();
-    let mut contacts = Contacts::<f64>::new(&colliders, n).unwrap();
+    let inverse_masses: Vec<T> = (0..n).map(|p| if p % 97 == 0 { T::ZERO } else { T::ONE }).collect();
+    let mut contacts = Contacts::<T>::new(&colliders, n).unwrap();
     contacts.begin_step(&start);
 
     let mut expected = state.clone();
     let mut expected_touched = false;
-    for p in (0..n).filter(|&p| inverse_masses[p] != 0.0) {
+    for p in (0..n).filter(|&p| inverse_masses[p] != T::ZERO) {
         for c in &contacts.colliders {
             if let Some(surface) = c.shape.contact(start.get(p), expected.positions.get(p), None) {
                 expected.positions.set(p, surface.point);

@@ -85,3 +85,92 @@ pub(crate) fn crossing<T: Real>([a, b, c]: [Vec3<T>; 3], start: Vec3<T>, d: Vec3
     let s = e2.dot(qvec) * inverse;
     (s >= T::ZERO && s <= T::ONE).then_some(s)
 }
+
+/// How far, relative to the size of the coordinates involved, a point's height over a
+/// triangle's plane as [`TrianglePlanes::height`] computes it may be from the true height: far
+/// more than the rounding of `f32`.
+const HEIGHT_SLACK: f64 = 1e-5;
+
+/// A triangle's plane and the planes through its edges square to it, computed once, so that
+/// most triangles are ruled out of a query, or answered, by a few dot products: a point's
+/// height over the plane bounds its distance, and a point over the inside of every edge has its
+/// nearest point straight below it.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct TrianglePlanes<T> {
+    /// Unit normal, as the corners wind; zero for a triangle of no area.
+    normal: Vec3<T>,
+    offset: T,
+    /// Unit vectors in the triangle's plane, square to each edge and pointing inwards.
+    edge_normals: [Vec3<T>; 3],
+    edge_offsets: [T; 3],
+    /// How far a computed height may be off through the corners' coordinates; infinite for a
+    /// triangle of no area, which every quick test leaves to the exact ones.
+    slack: T,
+}
+
+impl<T: Real> TrianglePlanes<T> {
+    pub fn new([a, b, c]: [Vec3<T>; 3]) -> Self {
+        let cross = (b - a).cross(c - a);
+        let area = cross.length();
+        if !(area > T::ZERO && area.is_finite()) {
+            return Self {
+                normal: Vec3::ZERO,
+                offset: T::ZERO,
+                edge_normals: [Vec3::ZERO; 3],
+                edge_offsets: [T::ZERO; 3],
+                slack: T::from_f64(f64::INFINITY),
+            };
+        }
+        let normal = cross * (T::ONE / area);
+        let corners = [a, b, c];
+        let edge_normals = [0, 1, 2].map(|k| {
+            let edge = corners[(k + 1) % 3] - corners[k];
+            normal.cross(edge) * (T::ONE / edge.length())
+        });
+        let size = corners.iter().map(|x| x.x.abs() + x.y.abs() + x.z.abs()).fold(T::ZERO, T::max);
+        Self {
+            normal,
+            offset: normal.dot(a),
+            edge_offsets: [0, 1, 2].map(|k| edge_normals[k].dot(corners[k])),
+            edge_normals,
+            slack: T::from_f64(HEIGHT_SLACK) * size,
+        }
+    }
+
+    /// How far `p` is over the plane, on the side the normal points to (negative under it).
+    #[inline(always)]
+    fn height(&self, p: Vec3<T>) -> T {
+        self.normal.dot(p) - self.offset
+    }
+
+    /// Whether the segment from `start` to `end` stays, with room to spare for rounding, on one
+    /// side of the plane, so that it cannot cross the triangle.
+    #[inline(always)]
+    pub fn apart(&self, start: Vec3<T>, end: Vec3<T>) -> bool {
+        let size = |x: Vec3<T>| x.x.abs() + x.y.abs() + x.z.abs();
+        let slack = self.slack + T::from_f64(HEIGHT_SLACK) * size(start).max(size(end));
+        let (from, to) = (self.height(start), self.height(end));
+        (from > slack && to > slack) || (from < -slack && to < -slack)
+    }
+
+    /// The point of the triangle nearest to `p`, its feature and its squared distance, unless
+    /// the triangle is farther than `bound` (a squared distance): [`nearest_point`] with the
+    /// planes' shortcuts. A point over the inside of every edge is nearest to its foot on the
+    /// plane; a point outside an edge by `e` at height `h` is at least `√(h² + e²)` away.
+    #[inline(always)]
+    pub fn nearest(&self, corners: [Vec3<T>; 3], p: Vec3<T>, bound: T) -> Option<(Vec3<T>, Feature, T)> {
+        if self.slack.is_finite() {
+            let height = self.height(p);
+            let outside =
+                (0..3).map(|k| self.edge_offsets[k] - self.edge_normals[k].dot(p)).fold(T::ZERO, T::max);
+            if height * height + outside * outside > bound {
+                return None;
+            }
+            if outside == T::ZERO {
+                return Some((p - self.normal * height, Feature::Face, height * height));
+            }
+        }
+        let (point, feature) = nearest_point(corners, p);
+        Some((point, feature, (p - point).length_squared()))
+    }
+}

@@ -9,7 +9,7 @@
 //! query walks it with a fixed stack and allocates nothing. Boxes are computed from the corners
 //! in the simulation's precision, so they bound the triangles exactly as the tests see them.
 
-use crate::solver::constraints::contacts::triangle::{self, Feature};
+use crate::solver::constraints::contacts::triangle::{self, Feature, TrianglePlanes};
 use crate::solver::math::real::Real;
 use crate::solver::math::vec3::Vec3;
 
@@ -47,6 +47,8 @@ pub struct TriangleBvh<T> {
     nodes: Vec<Node<T>>,
     /// Corners, in leaf order.
     corners: Vec<[Vec3<T>; 3]>,
+    /// The planes of each triangle, in leaf order.
+    planes: Vec<TrianglePlanes<T>>,
     /// For each triangle in leaf order, its index in the order given.
     order: Vec<u32>,
 }
@@ -62,8 +64,9 @@ impl<T: Real> TriangleBvh<T> {
         nodes.push(Node { lower: Vec3::ZERO, upper: Vec3::ZERO, first: 0, count: 0 });
         let mut builder = Builder { corners, centroids: &centroids, order: &mut order, nodes: &mut nodes };
         builder.split(0, 0, count);
-        let corners = order.iter().map(|&t| corners[t as usize]).collect();
-        Self { nodes, corners, order }
+        let corners: Vec<_> = order.iter().map(|&t| corners[t as usize]).collect();
+        let planes = corners.iter().map(|&c| TrianglePlanes::new(c)).collect();
+        Self { nodes, corners, planes, order }
     }
 
     /// How many triangles it holds.
@@ -83,7 +86,8 @@ impl<T: Real> TriangleBvh<T> {
 
     /// Bytes it holds.
     pub fn memory(&self) -> usize {
-        self.nodes.len() * size_of::<Node<T>>() + self.corners.len() * (size_of::<[Vec3<T>; 3]>() + 4)
+        self.nodes.len() * size_of::<Node<T>>()
+            + self.corners.len() * (size_of::<[Vec3<T>; 3]>() + size_of::<TrianglePlanes<T>>() + 4)
     }
 
     /// The point of the triangles nearest to `p` no farther than `radius` (infinite: any
@@ -136,12 +140,20 @@ impl<T: Real> TriangleBvh<T> {
         best
     }
 
+    /// The squared distance from `p` to the triangle in `slot`.
+    pub(crate) fn distance_squared(&self, slot: u32, p: Vec3<T>) -> T {
+        (p - triangle::nearest_point(self.corners[slot as usize], p).0).length_squared()
+    }
+
     /// Keeps the nearest point of the triangle in `slot` to `p` as `best` when it is nearer.
     #[inline(always)]
     fn consider_nearest(&self, slot: u32, p: Vec3<T>, best_squared: &mut T, best: &mut Option<Nearest<T>>) {
         let slot = slot as usize;
-        let (point, feature) = triangle::nearest_point(self.corners[slot], p);
-        let distance_squared = (p - point).length_squared();
+        let Some((point, feature, distance_squared)) =
+            self.planes[slot].nearest(self.corners[slot], p, *best_squared)
+        else {
+            return;
+        };
         if distance_squared < *best_squared || (best.is_none() && distance_squared <= *best_squared) {
             *best_squared = distance_squared;
             *best = Some(Nearest { triangle: self.order[slot] as usize, point, feature, distance_squared });
@@ -171,8 +183,11 @@ impl<T: Real> TriangleBvh<T> {
                 continue;
             }
             for slot in node.first..node.first + node.count {
-                let (point, _) = triangle::nearest_point(self.corners[slot as usize], p);
-                if (p - point).length_squared() <= radius_squared && !visit(slot) {
+                let (corners, planes) = (self.corners[slot as usize], &self.planes[slot as usize]);
+                let near = planes.nearest(corners, p, radius_squared);
+                if near.is_some_and(|(_, _, distance_squared)| distance_squared <= radius_squared)
+                    && !visit(slot)
+                {
                     return false;
                 }
             }
@@ -212,7 +227,7 @@ impl<T: Real> TriangleBvh<T> {
                 continue;
             }
             for slot in node.first..node.first + node.count {
-                if let Some(s) = self.consider_crossing(slot, start, d, &counts, &mut best) {
+                if let Some(s) = self.consider_crossing(slot, start, end, &counts, &mut best) {
                     // Nothing beyond the crossing can come first: the box shrinks to the part before it.
                     (lower, upper) = (start, start);
                     extend(&mut lower, &mut upper, start + d * s);
@@ -231,26 +246,30 @@ impl<T: Real> TriangleBvh<T> {
         end: Vec3<T>,
         counts: impl Fn(usize, Vec3<T>) -> bool,
     ) -> Option<(usize, T)> {
-        let d = end - start;
         let mut best = None;
         for &slot in slots {
-            self.consider_crossing(slot, start, d, &counts, &mut best);
+            self.consider_crossing(slot, start, end, &counts, &mut best);
         }
         best
     }
 
-    /// Keeps the crossing of the segment `start + s · d` with the triangle in `slot` as `best`
-    /// when it counts and comes first, and returns its parameter then.
+    /// Keeps the crossing of the segment from `start` to `end` with the triangle in `slot` as
+    /// `best` when it counts and comes first, and returns its parameter then. A segment that
+    /// stays on one side of the triangle's plane is ruled out by its planes alone.
     #[inline(always)]
     fn consider_crossing(
         &self,
         slot: u32,
         start: Vec3<T>,
-        d: Vec3<T>,
+        end: Vec3<T>,
         counts: &impl Fn(usize, Vec3<T>) -> bool,
         best: &mut Option<(usize, T)>,
     ) -> Option<T> {
         let slot = slot as usize;
+        if self.planes[slot].apart(start, end) {
+            return None;
+        }
+        let d = end - start;
         let s = triangle::crossing(self.corners[slot], start, d)?;
         let t = self.order[slot] as usize;
         let first = best.is_none_or(|(_, b)| s < b) && counts(t, d);
