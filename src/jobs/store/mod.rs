@@ -40,7 +40,9 @@ pub use memory::MemoryStore;
 pub use open::StoreUrl;
 pub use postgres::PostgresStore;
 pub use sqlite::SqliteStore;
-pub use sweep_rows::{ClaimedRun, ClaimedRuns, HeldRun, RunEnd, StoredRun, SweepEntry, SweepSummary};
+pub use sweep_rows::{
+    ClaimedRun, ClaimedRuns, HeldRun, InsertedSweep, RunEnd, StoredRun, SweepEntry, SweepSummary,
+};
 
 use crate::jobs::id::JobId;
 use crate::jobs::record::JobRecord;
@@ -286,8 +288,12 @@ pub trait JobStore: Send + Sync + 'static {
     /// Deletes an asset; returns whether there was one.
     async fn delete_asset(&self, id: &str) -> Result<bool, StoreError>;
 
-    /// Adds a sweep with its document and a queued row for each of its runs.
-    async fn insert_sweep(&self, sweep: &SweepEntry, document: &str) -> Result<(), StoreError>;
+    /// Adds a sweep with its document and a queued row for each of its runs, unless its
+    /// idempotency key is already held.
+    async fn insert_sweep(&self, sweep: &SweepEntry, document: &str) -> Result<InsertedSweep, StoreError>;
+
+    /// The sweep that holds this idempotency key.
+    async fn find_sweep_by_key(&self, key: &str) -> Result<Option<SweepSummary>, StoreError>;
 
     /// The sweep with this id, with how far its runs have got.
     async fn sweep(&self, id: &JobId) -> Result<Option<SweepSummary>, StoreError>;

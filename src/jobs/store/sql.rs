@@ -33,6 +33,7 @@ pub(super) const COLUMNS: &str = "id, status, created_ms, started_ms, finished_m
 
 /// The columns of a sweep (`s`) as [`SweepRow`] reads them, with its runs counted.
 const SWEEP_COLUMNS: &str = "s.id, s.created_ms, s.runs, s.has_reference, s.cancel_requested, \
+     s.idem_key, s.idem_fingerprint, \
      (SELECT COUNT(*) FROM sweep_runs r WHERE r.sweep_id = s.id AND r.status NOT IN ('queued', 'running')) \
      AS finished, \
      (SELECT COUNT(*) FROM sweep_runs r WHERE r.sweep_id = s.id AND r.status = 'running') AS running";
@@ -45,6 +46,8 @@ pub(super) struct SweepRow {
     runs: i64,
     has_reference: bool,
     cancel_requested: bool,
+    idem_key: Option<String>,
+    idem_fingerprint: Option<i64>,
     finished: i64,
     running: i64,
 }
@@ -59,6 +62,7 @@ impl SweepRow {
                 created_ms: self.created_ms as u64,
                 runs: count(self.runs)?,
                 has_reference: self.has_reference,
+                idempotency: idempotency(self.idem_key, self.idem_fingerprint),
             },
             cancel_requested: self.cancel_requested,
             finished: count(self.finished)?,
@@ -154,6 +158,7 @@ pub(super) struct Statements {
     pub delete_asset: String,
     pub insert_sweep: String,
     pub insert_sweep_runs: String,
+    pub find_sweep_by_key: String,
     pub sweep: String,
     pub sweep_document: String,
     pub list_sweeps: String,
@@ -257,7 +262,8 @@ impl Statements {
             list_assets: format!("SELECT {ASSET_COLUMNS} FROM assets ORDER BY seq DESC"),
             delete_asset: placeholders("DELETE FROM assets WHERE id = $1".into()),
             insert_sweep: placeholders(
-                "INSERT INTO sweeps (id, created_ms, runs, has_reference, document) VALUES ($1, $2, $3, $4, $5)"
+                "INSERT INTO sweeps (id, created_ms, runs, has_reference, document, idem_key, idem_fingerprint) \
+                 VALUES ($1, $2, $3, $4, $5, $6, $7) ON CONFLICT (idem_key) DO NOTHING"
                     .into(),
             ),
             // One statement makes every run's row, however many there are.
@@ -266,6 +272,7 @@ impl Statements {
                  INSERT INTO sweep_runs (sweep_id, idx, status) SELECT $1, i, 'queued' FROM n"
                     .into(),
             ),
+            find_sweep_by_key: placeholders(format!("SELECT {SWEEP_COLUMNS} FROM sweeps s WHERE s.idem_key = $1")),
             sweep: placeholders(format!("SELECT {SWEEP_COLUMNS} FROM sweeps s WHERE s.id = $1")),
             sweep_document: placeholders("SELECT document FROM sweeps WHERE id = $1".into()),
             list_sweeps: placeholders(format!(
@@ -367,10 +374,7 @@ impl JobRow {
                     .ok_or_else(|| corrupt(format!("a failure `{name}`")))
             })
             .transpose()?;
-        let idempotency = match (self.idem_key, self.idem_fingerprint) {
-            (Some(key), Some(fingerprint)) => Some(Idempotency { key, fingerprint: fingerprint as u64 }),
-            _ => None,
-        };
+        let idempotency = idempotency(self.idem_key, self.idem_fingerprint);
         Ok(JobRecord {
             id,
             status,
@@ -392,6 +396,14 @@ impl JobRow {
             idempotency,
             attempts: u32::try_from(self.attempts).unwrap_or(u32::MAX),
         })
+    }
+}
+
+/// An idempotency key as its two columns hold it.
+fn idempotency(key: Option<String>, fingerprint: Option<i64>) -> Option<Idempotency> {
+    match (key, fingerprint) {
+        (Some(key), Some(fingerprint)) => Some(Idempotency { key, fingerprint: fingerprint as u64 }),
+        _ => None,
     }
 }
 
@@ -827,25 +839,52 @@ macro_rules! sql_store {
                 &self,
                 sweep: &$crate::jobs::SweepEntry,
                 document: &str,
-            ) -> Result<(), $crate::jobs::StoreError> {
+            ) -> Result<$crate::jobs::InsertedSweep, $crate::jobs::StoreError> {
                 use $crate::jobs::store::sql::{backend, int};
                 let mut tx = self.pool.begin().await.map_err(backend)?;
-                sqlx::query(&self.sql.insert_sweep)
+                let inserted = sqlx::query(&self.sql.insert_sweep)
                     .bind(sweep.id.as_str())
                     .bind(int(sweep.created_ms))
                     .bind(i64::from(sweep.runs))
                     .bind(sweep.has_reference)
                     .bind(document)
+                    .bind(sweep.idempotency.as_ref().map(|i| i.key.clone()))
+                    .bind(sweep.idempotency.as_ref().map(|i| int(i.fingerprint)))
                     .execute(&mut *tx)
                     .await
                     .map_err(backend)?;
+                if inserted.rows_affected() == 0 {
+                    tx.rollback().await.map_err(backend)?;
+                    let key = sweep.idempotency.as_ref().map(|i| i.key.as_str()).unwrap_or_default();
+                    return match self.find_sweep_by_key(key).await? {
+                        Some(holder) => Ok($crate::jobs::InsertedSweep::KeyTaken(Box::new(holder))),
+                        None => Err($crate::jobs::StoreError::Backend(format!(
+                            "sweep {} was not inserted",
+                            sweep.id
+                        ))),
+                    };
+                }
                 sqlx::query(&self.sql.insert_sweep_runs)
                     .bind(sweep.id.as_str())
                     .bind(i64::from(sweep.runs))
                     .execute(&mut *tx)
                     .await
                     .map_err(backend)?;
-                tx.commit().await.map_err(backend)
+                tx.commit().await.map_err(backend)?;
+                Ok($crate::jobs::InsertedSweep::New)
+            }
+
+            async fn find_sweep_by_key(
+                &self,
+                key: &str,
+            ) -> Result<Option<$crate::jobs::SweepSummary>, $crate::jobs::StoreError> {
+                sqlx::query_as::<_, $crate::jobs::store::sql::SweepRow>(&self.sql.find_sweep_by_key)
+                    .bind(key)
+                    .fetch_optional(&self.pool)
+                    .await
+                    .map_err($crate::jobs::store::sql::backend)?
+                    .map($crate::jobs::store::sql::SweepRow::into_summary)
+                    .transpose()
             }
 
             async fn sweep(
