@@ -625,6 +625,24 @@ async fn a_sweep_idempotency_key_is_held_by_one_sweep(store: Arc<dyn JobStore>) 
     assert_eq!(listed[2].entry.idempotency, first.idempotency);
 }
 
+async fn the_ends_of_a_batch_are_stored_together_for_the_runs_still_held(store: Arc<dyn JobStore>) {
+    let sweep = sweep_entry(3, false);
+    store.insert_sweep(&sweep, "{}").await.unwrap();
+    assert_eq!(claim_runs(&*store, "a", T0, 1).await, Some((sweep.id.clone(), vec![(0, 1)])));
+    assert_eq!(claim_runs(&*store, "b", T0, 1).await, Some((sweep.id.clone(), vec![(1, 1)])));
+    // a holds run 0 alone: b's run 1 and the waiting run 2 are not a's to end.
+    let ends = vec![run_end(0, b"{\"run\": 0}"), run_end(1, b"not a's"), run_end(2, b"not started")];
+    assert_eq!(store.finish_sweep_runs(&sweep.id, "a", ends).await.unwrap(), 1);
+    let runs = store.sweep_runs(&sweep.id).await.unwrap();
+    let statuses: Vec<JobStatus> = runs.iter().map(|r| r.status).collect();
+    assert_eq!(statuses, [JobStatus::Succeeded, JobStatus::Running, JobStatus::Queued]);
+    assert_eq!(runs[0].result.as_deref(), Some(&b"{\"run\": 0}"[..]));
+    assert_eq!(store.finish_sweep_runs(&sweep.id, "b", vec![run_end(1, b"b's")]).await.unwrap(), 1);
+    assert_eq!(store.finish_sweep_runs(&sweep.id, "b", Vec::new()).await.unwrap(), 0);
+    let summary = store.sweep(&sweep.id).await.unwrap().unwrap();
+    assert_eq!((summary.finished, summary.running), (2, 0));
+}
+
 /// A module named for the backend with one test per suite function, each carrying the
 /// attributes in brackets (for PostgreSQL, an `ignore` with what it needs).
 macro_rules! suite {
@@ -670,6 +688,7 @@ every_backend!(
     sweep_runs_are_claimed_in_batches_of_the_oldest_sweep_under_a_lease,
     cancelling_a_sweep_ends_its_waiting_runs_and_flags_its_running_ones,
     a_sweep_idempotency_key_is_held_by_one_sweep,
+    the_ends_of_a_batch_are_stored_together_for_the_runs_still_held,
 );
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

@@ -160,6 +160,12 @@ impl Jobs {
         self.shared.store.sweep(id).await
     }
 
+    /// A channel that changes whenever a batch of sweep runs (or a job) ends on this instance,
+    /// so a follower of a sweep learns of its end without waiting for its next look.
+    pub fn sweep_changes(&self) -> tokio::sync::watch::Receiver<u64> {
+        self.shared.changes.subscribe()
+    }
+
     /// Sweeps, newest first.
     pub async fn list_sweeps(&self, page: Page) -> Result<Vec<SweepSummary>, StoreError> {
         self.shared.store.list_sweeps(page).await

@@ -1008,6 +1008,33 @@ macro_rules! sql_store {
                 Ok(ended.rows_affected() == 1)
             }
 
+            async fn finish_sweep_runs(
+                &self,
+                sweep: &$crate::jobs::JobId,
+                owner: &str,
+                ends: Vec<$crate::jobs::RunEnd>,
+            ) -> Result<usize, $crate::jobs::StoreError> {
+                use $crate::jobs::store::sql::{backend, compress};
+                let mut tx = self.pool.begin().await.map_err(backend)?;
+                let mut recorded = 0;
+                for end in ends {
+                    let result = end.result.as_deref().map(compress).transpose()?;
+                    let ended = sqlx::query(&self.sql.finish_sweep_run)
+                        .bind(end.status.name())
+                        .bind(end.message)
+                        .bind(result)
+                        .bind(sweep.as_str())
+                        .bind(i64::from(end.index))
+                        .bind(owner)
+                        .execute(&mut *tx)
+                        .await
+                        .map_err(backend)?;
+                    recorded += usize::try_from(ended.rows_affected()).unwrap_or(0);
+                }
+                tx.commit().await.map_err(backend)?;
+                Ok(recorded)
+            }
+
             async fn release_sweep_runs(
                 &self,
                 sweep: &$crate::jobs::JobId,
