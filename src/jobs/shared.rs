@@ -88,12 +88,17 @@ impl Shared {
             .and_then(|document| sweep_for_table(document, u64::MAX).map_err(|e| e.to_string()))
             .map_err(|e| StoreError::Backend(format!("the stored sweep {id} cannot be read: {e}")))?;
         let sweep = Arc::new(sweep);
+        self.keep_sweep(id, Arc::clone(&sweep));
+        Ok(Some(sweep))
+    }
+
+    /// Keeps a sweep checked, as run for its table, among the most recently used.
+    pub(super) fn keep_sweep(&self, id: &JobId, sweep: Arc<Sweep>) {
         let mut sweeps = self.sweeps.lock().unwrap_or_else(PoisonError::into_inner);
         if sweeps.len() >= SWEEPS_KEPT {
             sweeps.remove(0);
         }
-        sweeps.push((id.clone(), Arc::clone(&sweep)));
-        Ok(Some(sweep))
+        sweeps.push((id.clone(), sweep));
     }
 
     /// A lease for this instance from now.

@@ -149,6 +149,8 @@ impl Jobs {
             let key = entry.idempotency.as_ref().expect("only a keyed sweep can find its key taken");
             return repeat_of(*earlier, key);
         }
+        // Checked once: this instance's workers and tables use it as it is.
+        self.shared.keep_sweep(&entry.id, Arc::new(sweep));
         self.shared.doorbell.ring_all();
         tracing::info!(sweep = %entry.id, runs, "sweep queued");
         let summary = SweepSummary { entry, cancel_requested: false, finished: 0, running: 0 };
