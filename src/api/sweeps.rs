@@ -31,7 +31,11 @@ pub async fn submit(
         state.jobs.resolve_assets(scene, "/scene").await?;
     }
     let submitted = state.jobs.submit_sweep(document, state.config.max_sweep_variants, idempotency).await?;
-    let sweep = state.jobs.sweep_state(submitted.summary).await?;
+    let sweep = if submitted.repeated {
+        state.jobs.sweep_state(submitted.summary).await?
+    } else {
+        state.jobs.queued_sweep_state(submitted.summary).await?
+    };
     let id = sweep.summary.entry.id.clone();
     let mut response = (StatusCode::ACCEPTED, Json(sweep_view(&sweep))).into_response();
     let location = HeaderValue::from_str(&format!("/sweeps/{id}")).expect("sweep ids are URL-safe");

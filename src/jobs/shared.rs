@@ -75,11 +75,7 @@ impl Shared {
     /// the first time; `None` if the store has no such sweep. Call it off the async runtime: it
     /// blocks on the store and checks every variant.
     pub(super) fn sweep_blocking(&self, id: &JobId) -> Result<Option<Arc<Sweep>>, StoreError> {
-        let kept = |s: &Self| {
-            let sweeps = s.sweeps.lock().unwrap_or_else(PoisonError::into_inner);
-            sweeps.iter().find(|(kept, _)| kept == id).map(|(_, sweep)| Arc::clone(sweep))
-        };
-        if let Some(sweep) = kept(self) {
+        if let Some(sweep) = self.kept_sweep(id) {
             return Ok(Some(sweep));
         }
         let Some(document) = self.runtime.block_on(self.store.sweep_document(id))? else { return Ok(None) };
@@ -90,6 +86,12 @@ impl Shared {
         let sweep = Arc::new(sweep);
         self.keep_sweep(id, Arc::clone(&sweep));
         Ok(Some(sweep))
+    }
+
+    /// The sweep with this id if it is kept here, checked, as run for its table.
+    pub(super) fn kept_sweep(&self, id: &JobId) -> Option<Arc<Sweep>> {
+        let sweeps = self.sweeps.lock().unwrap_or_else(PoisonError::into_inner);
+        sweeps.iter().find(|(kept, _)| kept == id).map(|(_, sweep)| Arc::clone(sweep))
     }
 
     /// Keeps a sweep checked, as run for its table, among the most recently used.

@@ -188,6 +188,17 @@ impl Jobs {
         .map_err(|e| StoreError::Backend(format!("assembling the sweep table failed: {e}")))?
     }
 
+    /// The table of a sweep [`submit_sweep`](Self::submit_sweep) has just stored: its runs
+    /// are all queued, so none is read back.
+    pub async fn queued_sweep_state(&self, summary: SweepSummary) -> Result<SweepState, StoreError> {
+        let Some(sweep) = self.shared.kept_sweep(&summary.entry.id) else {
+            return self.sweep_state(summary).await;
+        };
+        let queued = || StoredRun { status: JobStatus::Queued, message: None, result: None };
+        let runs = (0..summary.entry.runs).map(|_| queued()).collect();
+        Ok(assemble(summary, &sweep, runs))
+    }
+
     /// Cancels a sweep: its runs not started end at once, and those running (here or on another
     /// instance) stop within a lease renewal. `None` if there is no such sweep.
     pub async fn cancel_sweep(&self, id: &JobId) -> Result<Option<SweepSummary>, StoreError> {

@@ -13,7 +13,9 @@
 //! twice with `attempts` never counted. A job given up after `--max-attempts` is failed in the
 //! same transaction, its `attempts` left at the number of starts.
 //!
-//! Results are deflate-compressed on the way in and inflated on the way out.
+//! Results are deflate-compressed on the way in and inflated on the way out, except a sweep
+//! run's small result: a few hundred bytes of JSON cost far more to deflate and inflate than to
+//! store as they are.
 
 use std::io::{Read, Write};
 
@@ -84,7 +86,7 @@ impl RunRow {
         Ok(super::StoredRun {
             status: status(&self.status)?,
             message: self.message,
-            result: self.result.as_deref().map(decompress).transpose()?,
+            result: self.result.as_deref().map(unpack_run_result).transpose()?,
         })
     }
 }
@@ -434,6 +436,27 @@ pub(super) fn decompress(bytes: &[u8]) -> Result<Bytes, StoreError> {
         .read_to_end(&mut out)
         .map_err(|e| corrupt(format!("a damaged result ({e})")))?;
     Ok(Bytes::from(out))
+}
+
+/// Results of sweep runs up to this size are stored as they are.
+const RAW_RUN_RESULT: usize = 16 * 1024;
+
+/// A sweep run's result (always JSON) as stored: as it is when small, else deflated.
+pub(super) fn pack_run_result(bytes: &[u8]) -> Result<Vec<u8>, StoreError> {
+    if bytes.len() <= RAW_RUN_RESULT && bytes.first() == Some(&b'{') {
+        return Ok(bytes.to_vec());
+    }
+    compress(bytes)
+}
+
+/// A sweep run's stored result. A JSON object is stored as it is; a deflate stream never
+/// starts with the byte `{`: its first byte says a final fixed-code block whose first code is
+/// that of a byte from 224 to 239, which no JSON document starts with.
+pub(super) fn unpack_run_result(bytes: &[u8]) -> Result<Bytes, StoreError> {
+    match bytes.first() {
+        Some(b'{') => Ok(Bytes::copy_from_slice(bytes)),
+        _ => decompress(bytes),
+    }
 }
 
 /// The media types a result can have, as the `'static` strings [`StoredResult`] holds.
@@ -937,7 +960,7 @@ macro_rules! sql_store {
                     .fetch_all(&self.pool)
                     .await
                     .map_err($crate::jobs::store::sql::backend)?;
-                // Inflating every run's result is CPU work that grows with the sweep.
+                // Inflating runs' results is CPU work that grows with the sweep.
                 tokio::task::spawn_blocking(move || rows.into_iter().map(|row| row.into_run()).collect())
                     .await
                     .map_err(|e| $crate::jobs::StoreError::Backend(e.to_string()))?
@@ -993,8 +1016,8 @@ macro_rules! sql_store {
                 owner: &str,
                 end: $crate::jobs::RunEnd,
             ) -> Result<bool, $crate::jobs::StoreError> {
-                use $crate::jobs::store::sql::{backend, compress};
-                let result = end.result.as_deref().map(compress).transpose()?;
+                use $crate::jobs::store::sql::{backend, pack_run_result};
+                let result = end.result.as_deref().map(pack_run_result).transpose()?;
                 let ended = sqlx::query(&self.sql.finish_sweep_run)
                     .bind(end.status.name())
                     .bind(end.message)
@@ -1014,11 +1037,11 @@ macro_rules! sql_store {
                 owner: &str,
                 ends: Vec<$crate::jobs::RunEnd>,
             ) -> Result<usize, $crate::jobs::StoreError> {
-                use $crate::jobs::store::sql::{backend, compress};
+                use $crate::jobs::store::sql::{backend, pack_run_result};
                 let mut tx = self.pool.begin().await.map_err(backend)?;
                 let mut recorded = 0;
                 for end in ends {
-                    let result = end.result.as_deref().map(compress).transpose()?;
+                    let result = end.result.as_deref().map(pack_run_result).transpose()?;
                     let ended = sqlx::query(&self.sql.finish_sweep_run)
                         .bind(end.status.name())
                         .bind(end.message)
@@ -1091,3 +1114,30 @@ macro_rules! sql_store {
 }
 
 pub(super) use sql_store;
+
+#[cfg(test)]
+mod tests {
+    use super::{RAW_RUN_RESULT, compress, pack_run_result, unpack_run_result};
+
+    #[test]
+    fn a_small_run_result_is_stored_as_it_is_and_a_large_one_deflated() {
+        let small = br#"{"stats":{"steps":3},"last":{"positions":[0.0,1.5,-2.0]}}"#.to_vec();
+        assert_eq!(pack_run_result(&small).unwrap(), small);
+        assert_eq!(unpack_run_result(&small).unwrap().as_ref(), &small[..]);
+
+        let large = format!("{{\"last\":{{\"positions\":[{}0]}}}}", "0.25,".repeat(RAW_RUN_RESULT / 4));
+        let packed = pack_run_result(large.as_bytes()).unwrap();
+        assert!(packed.len() < large.len() / 10, "{} bytes of {}", packed.len(), large.len());
+        assert_ne!(packed.first(), Some(&b'{'));
+        assert_eq!(unpack_run_result(&packed).unwrap().as_ref(), large.as_bytes());
+    }
+
+    #[test]
+    fn a_run_result_deflated_when_every_one_was_is_still_read() {
+        for document in [&br#"{"a":1}"#[..], br#"{"stats":{"steps":3},"last":{"positions":[0.0,1.5]}}"#] {
+            let stored = compress(document).unwrap();
+            assert_ne!(stored.first(), Some(&b'{'));
+            assert_eq!(unpack_run_result(&stored).unwrap().as_ref(), document);
+        }
+    }
+}
