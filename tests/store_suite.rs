@@ -643,6 +643,40 @@ async fn the_ends_of_a_batch_are_stored_together_for_the_runs_still_held(store: 
     assert_eq!((summary.finished, summary.running), (2, 0));
 }
 
+async fn a_hundred_ends_are_stored_at_once_each_with_its_own_result(store: Arc<dyn JobStore>) {
+    let sweep = sweep_entry(101, false);
+    store.insert_sweep(&sweep, "{}").await.unwrap();
+    let (_, claimed) = claim_runs(&*store, "a", T0, 100).await.unwrap();
+    assert_eq!(claimed.len(), 100);
+    let results: Vec<String> = (0..100).map(|i| format!("{{\"run\": {i}}}")).collect();
+    let mut ends: Vec<RunEnd> = (0..100).map(|i| run_end(i, results[i as usize].as_bytes())).collect();
+    ends[70] = RunEnd {
+        status: JobStatus::Failed,
+        message: Some("run 70 failed".into()),
+        result: None,
+        ..ends[70].clone()
+    };
+    assert_eq!(store.finish_sweep_runs(&sweep.id, "a", ends).await.unwrap(), 100);
+    let runs = store.sweep_runs(&sweep.id).await.unwrap();
+    for (i, run) in runs.iter().enumerate().take(100) {
+        if i == 70 {
+            assert_eq!(
+                (run.status, run.message.as_deref(), &run.result),
+                (JobStatus::Failed, Some("run 70 failed"), &None)
+            );
+        } else {
+            assert_eq!(
+                (run.status, run.result.as_deref()),
+                (JobStatus::Succeeded, Some(results[i].as_bytes())),
+                "run {i}"
+            );
+        }
+    }
+    assert_eq!(runs[100].status, JobStatus::Queued);
+    let summary = store.sweep(&sweep.id).await.unwrap().unwrap();
+    assert_eq!((summary.finished, summary.running), (100, 0));
+}
+
 /// A module named for the backend with one test per suite function, each carrying the
 /// attributes in brackets (for PostgreSQL, an `ignore` with what it needs).
 macro_rules! suite {
@@ -689,6 +723,7 @@ every_backend!(
     cancelling_a_sweep_ends_its_waiting_runs_and_flags_its_running_ones,
     a_sweep_idempotency_key_is_held_by_one_sweep,
     the_ends_of_a_batch_are_stored_together_for_the_runs_still_held,
+    a_hundred_ends_are_stored_at_once_each_with_its_own_result,
 );
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

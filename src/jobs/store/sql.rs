@@ -168,6 +168,8 @@ pub(super) struct Statements {
     pub claim_sweep_runs: String,
     pub renew_sweep_runs: String,
     pub finish_sweep_run: String,
+    /// Ends `n` runs of one sweep in one statement, at index `n - 1`, up to [`RUN_ENDS_AT_ONCE`].
+    pub finish_sweep_runs: Vec<String>,
     pub release_sweep_run: String,
     pub flag_sweep_cancel: String,
     pub cancel_sweep_runs_now: String,
@@ -306,6 +308,7 @@ impl Statements {
                  WHERE sweep_id = $4 AND idx = $5 AND status = 'running' AND lease_owner = $6"
                     .into(),
             ),
+            finish_sweep_runs: (1..=RUN_ENDS_AT_ONCE).map(|n| placeholders(finish_runs(n))).collect(),
             release_sweep_run: placeholders(
                 "UPDATE sweep_runs SET status = 'queued', attempts = attempts - 1, lease_owner = NULL, \
                  lease_until_ms = NULL \
@@ -399,6 +402,24 @@ impl JobRow {
             attempts: u32::try_from(self.attempts).unwrap_or(u32::MAX),
         })
     }
+}
+
+/// Run ends stored by one statement at most.
+pub(super) const RUN_ENDS_AT_ONCE: usize = 64;
+
+/// The statement that ends `n` held runs of sweep `$1` for owner `$2`, each given by four
+/// parameters from `$3` on: its number, status, message and result. A `VALUES` list's columns
+/// are `column1`, `column2`, ... in both SQLite and PostgreSQL.
+fn finish_runs(n: usize) -> String {
+    let rows: Vec<String> =
+        (0..n).map(|i| format!("(${}, ${}, ${}, ${})", 4 * i + 3, 4 * i + 4, 4 * i + 5, 4 * i + 6)).collect();
+    format!(
+        "UPDATE sweep_runs SET status = v.column2, message = v.column3, result = v.column4, \
+         lease_owner = NULL, lease_until_ms = NULL FROM (VALUES {}) AS v \
+         WHERE sweep_runs.sweep_id = $1 AND sweep_runs.idx = v.column1 \
+         AND sweep_runs.status = 'running' AND sweep_runs.lease_owner = $2",
+        rows.join(", ")
+    )
 }
 
 /// An idempotency key as its two columns hold it.
@@ -1037,21 +1058,22 @@ macro_rules! sql_store {
                 owner: &str,
                 ends: Vec<$crate::jobs::RunEnd>,
             ) -> Result<usize, $crate::jobs::StoreError> {
-                use $crate::jobs::store::sql::{backend, pack_run_result};
+                use $crate::jobs::store::sql::{RUN_ENDS_AT_ONCE, backend, pack_run_result};
                 let mut tx = self.pool.begin().await.map_err(backend)?;
                 let mut recorded = 0;
-                for end in ends {
-                    let result = end.result.as_deref().map(pack_run_result).transpose()?;
-                    let ended = sqlx::query(&self.sql.finish_sweep_run)
-                        .bind(end.status.name())
-                        .bind(end.message)
-                        .bind(result)
+                for chunk in ends.chunks(RUN_ENDS_AT_ONCE) {
+                    let mut statement = sqlx::query(&self.sql.finish_sweep_runs[chunk.len() - 1])
                         .bind(sweep.as_str())
-                        .bind(i64::from(end.index))
-                        .bind(owner)
-                        .execute(&mut *tx)
-                        .await
-                        .map_err(backend)?;
+                        .bind(owner);
+                    for end in chunk {
+                        let result = end.result.as_deref().map(pack_run_result).transpose()?;
+                        statement = statement
+                            .bind(i64::from(end.index))
+                            .bind(end.status.name())
+                            .bind(end.message.clone())
+                            .bind(result);
+                    }
+                    let ended = statement.execute(&mut *tx).await.map_err(backend)?;
                     recorded += usize::try_from(ended.rows_affected()).unwrap_or(0);
                 }
                 tx.commit().await.map_err(backend)?;
