@@ -32,10 +32,10 @@ enum Command {
     Serve(Box<drape::config::Config>),
     /// Runs a scene and prints its JSON result (or writes it to a file).
     ///
-    /// With --server the scene runs there and its result is written here the same way; the exit
-    /// status is then 0 succeeded, 1 the run failed or diverged (its result is still written),
-    /// 2 a bad scene (the server's problem printed field by field), 3 the server could not be
-    /// reached or refused the work.
+    /// Exit status: 0 succeeded, 1 the run failed or diverged (a diverged run's result is still
+    /// written), 2 a bad scene (each field named). With --server the scene runs there and its
+    /// result is written here the same way, with the same statuses and 3 when the server could
+    /// not be reached or refused the work.
     Run {
         /// The scene, as a JSON file (`-` reads standard input).
         scene: PathBuf,
@@ -431,11 +431,16 @@ fn run(
                 .and_then(|_| out.flush())
         }
     };
-    match written {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("drape: cannot write the result: {e}");
-            ExitCode::FAILURE
-        }
+    if let Err(e) = written {
+        eprintln!("drape: cannot write the result: {e}");
+        return ExitCode::FAILURE;
     }
+    // A diverged run's result is written (up to its last finite frame), and the exit status says
+    // it diverged, as `drape run --server` does.
+    if recording.stats.status == Status::Diverged {
+        let reason = recording.stats.diverged.as_ref().map_or("", |d| d.reason.as_str());
+        eprintln!("drape: the run of {} diverged: {reason}", path.display());
+        return ExitCode::FAILURE;
+    }
+    ExitCode::SUCCESS
 }

@@ -1,5 +1,5 @@
-//! `drape run` from the shell: results on stdout, a diverged run is still a result, and a bad
-//! scene exits non-zero naming its fields.
+//! `drape run` from the shell: results on stdout, a diverged run is still a result (and exits
+//! 1), and a bad scene exits non-zero naming its fields.
 
 use std::io::Write;
 use std::process::{Command, Output, Stdio};
@@ -51,12 +51,13 @@ fn the_example_scene_runs_and_prints_its_result() {
 }
 
 #[test]
-fn a_diverged_run_is_a_result() {
+fn a_diverged_run_is_a_result_and_exits_1() {
     let out = drape_run(
         r#"{"duration": 1, "dt": 0.05, "bodies": [{"type": "chain", "count": 3, "mass": 0.001, "pin": [0],
             "spring": {"k": 100000}}]}"#,
     );
-    assert!(out.status.success());
+    assert_eq!(out.status.code(), Some(1), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("diverged"));
     let result: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(result["stats"]["status"], "diverged");
     assert!(result["stats"]["diverged"]["suggested_dt"].as_f64().unwrap() < 0.05);

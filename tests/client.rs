@@ -226,6 +226,29 @@ fn a_retried_submit_answers_with_the_job_it_queued() {
     assert_eq!(job_count(&server, None), 3, "the plain request, the keyed one, the npy one");
 }
 
+#[test]
+fn a_retried_sweep_step_runs_one_sweep() {
+    let dir = tempfile::tempdir().unwrap();
+    let server = Server::start(dir.path(), "memory", &[]);
+    let sweep = |key: &str| {
+        let args = ["sweep", "-", "--csv", "--server", &server.base, "--idempotency-key", key];
+        let out = drape(dir.path(), &args, SWEEP);
+        assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
+        out.stdout
+    };
+    let sweeps = || {
+        let answer = ureq::get(format!("{}/sweeps", server.base)).call().unwrap();
+        let listed: Value = serde_json::from_slice(&answer.into_body().read_to_vec().unwrap()).unwrap();
+        listed["sweeps"].as_array().unwrap().len()
+    };
+    let first = sweep("pipeline-7");
+    // The retry reads the sweep the first step made: the same table, wall times included.
+    assert_eq!(sweep("pipeline-7"), first);
+    assert_eq!(sweeps(), 1);
+    assert_ne!(sweep("pipeline-8"), first, "another key is another sweep, with its own wall times");
+    assert_eq!(sweeps(), 2);
+}
+
 /// The CSV of a sweep without its `wall_time_s` column, which no two runs share.
 fn without_wall_times(csv: &[u8]) -> Vec<Vec<String>> {
     let mut reader = csv::Reader::from_reader(csv);

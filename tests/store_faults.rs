@@ -9,9 +9,9 @@ use std::time::Duration;
 
 use async_trait::async_trait;
 use drape::jobs::{
-    AssetRecord, AssetRoom, CancelRequest, Claim, ClaimedRuns, HeldRun, Inserted, JobId, JobRecord,
-    JobStatus, JobStore, Jobs, JobsConfig, Lease, MemoryStore, Outcome, Page, PutAsset, Renewed, RunEnd,
-    StoreError, StoredResult, StoredRun, Submission, SweepEntry, SweepSummary,
+    AssetRecord, AssetRoom, CancelRequest, Claim, ClaimedRuns, HeldRun, Inserted, InsertedSweep, JobId,
+    JobRecord, JobStatus, JobStore, Jobs, JobsConfig, Lease, MemoryStore, Outcome, Page, PutAsset, Renewed,
+    RunEnd, StoreError, StoredResult, StoredRun, Submission, SweepEntry, SweepSummary,
 };
 use drape::scene::{Compiled, Scene};
 use serde_json::json;
@@ -149,8 +149,11 @@ impl JobStore for Faulty {
     async fn delete_asset(&self, id: &str) -> Result<bool, StoreError> {
         self.inner.delete_asset(id).await
     }
-    async fn insert_sweep(&self, sweep: &SweepEntry, document: &str) -> Result<(), StoreError> {
+    async fn insert_sweep(&self, sweep: &SweepEntry, document: &str) -> Result<InsertedSweep, StoreError> {
         self.inner.insert_sweep(sweep, document).await
+    }
+    async fn find_sweep_by_key(&self, key: &str) -> Result<Option<SweepSummary>, StoreError> {
+        self.inner.find_sweep_by_key(key).await
     }
     async fn sweep(&self, id: &JobId) -> Result<Option<SweepSummary>, StoreError> {
         self.inner.sweep(id).await

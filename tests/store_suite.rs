@@ -12,9 +12,9 @@ use std::time::Duration;
 
 use bytes::Bytes;
 use drape::jobs::{
-    AssetRecord, AssetRoom, CancelRequest, Claim, Claimed, Failure, Idempotency, Inserted, JobId, JobRecord,
-    JobStatus, JobStore, Jobs, JobsConfig, Lease, MemoryStore, Outcome, Page, Plan, PostgresStore, PutAsset,
-    Renewed, RunEnd, SqliteStore, StoredResult, Submission, SweepEntry,
+    AssetRecord, AssetRoom, CancelRequest, Claim, Claimed, Failure, Idempotency, Inserted, InsertedSweep,
+    JobId, JobRecord, JobStatus, JobStore, Jobs, JobsConfig, Lease, MemoryStore, Outcome, Page, Plan,
+    PostgresStore, PutAsset, Renewed, RunEnd, SqliteStore, StoredResult, Submission, SweepEntry,
 };
 use drape::scene::Scene;
 use serde_json::json;
@@ -464,7 +464,11 @@ async fn assets_never_pass_their_room(store: Arc<dyn JobStore>) {
 }
 
 fn sweep_entry(runs: u32, has_reference: bool) -> SweepEntry {
-    SweepEntry { id: JobId::new(), created_ms: T0, runs, has_reference }
+    SweepEntry { id: JobId::new(), created_ms: T0, runs, has_reference, idempotency: None }
+}
+
+fn keyed_sweep(runs: u32, key: &str, fingerprint: u64) -> SweepEntry {
+    SweepEntry { idempotency: Some(Idempotency { key: key.into(), fingerprint }), ..sweep_entry(runs, false) }
 }
 
 /// The indices and attempts of the runs `owner` claims at `now`, and their sweep.
@@ -592,6 +596,87 @@ async fn cancelling_a_sweep_ends_its_waiting_runs_and_flags_its_running_ones(sto
     assert_eq!(claim_runs(&*store, "c", T0 + 14 + LEASE_MS, 5).await, None);
 }
 
+async fn a_sweep_idempotency_key_is_held_by_one_sweep(store: Arc<dyn JobStore>) {
+    let first = keyed_sweep(3, "ci-step", 7);
+    assert_eq!(store.insert_sweep(&first, r#"{"tag": "first"}"#).await.unwrap(), InsertedSweep::New);
+    let held = store.find_sweep_by_key("ci-step").await.unwrap().unwrap();
+    assert_eq!((held.entry.clone(), held.finished), (first.clone(), 0));
+
+    // A second sweep under the key, whatever its fingerprint, is not added: the holder is found.
+    for fingerprint in [7, 8] {
+        let again = keyed_sweep(5, "ci-step", fingerprint);
+        assert_eq!(
+            store.insert_sweep(&again, "{}").await.unwrap(),
+            InsertedSweep::KeyTaken(Box::new(held.clone()))
+        );
+        assert!(store.sweep(&again.id).await.unwrap().is_none());
+        assert!(store.sweep_runs(&again.id).await.unwrap().is_empty());
+    }
+    assert_eq!(store.sweep_document(&first.id).await.unwrap().unwrap(), r#"{"tag": "first"}"#);
+
+    // Sweeps without a key never collide, and a key of a job is not a key of a sweep.
+    let (a, b) = (sweep_entry(1, false), sweep_entry(1, false));
+    assert_eq!(store.insert_sweep(&a, "{}").await.unwrap(), InsertedSweep::New);
+    assert_eq!(store.insert_sweep(&b, "{}").await.unwrap(), InsertedSweep::New);
+    assert!(store.find_sweep_by_key("other").await.unwrap().is_none());
+    assert_eq!(store.insert(job(Some(("ci-step", 7))), "{}").await.unwrap(), Inserted::New);
+    let listed = store.list_sweeps(Page { offset: 0, limit: 10 }).await.unwrap();
+    assert_eq!(listed.len(), 3);
+    assert_eq!(listed[2].entry.idempotency, first.idempotency);
+}
+
+async fn the_ends_of_a_batch_are_stored_together_for_the_runs_still_held(store: Arc<dyn JobStore>) {
+    let sweep = sweep_entry(3, false);
+    store.insert_sweep(&sweep, "{}").await.unwrap();
+    assert_eq!(claim_runs(&*store, "a", T0, 1).await, Some((sweep.id.clone(), vec![(0, 1)])));
+    assert_eq!(claim_runs(&*store, "b", T0, 1).await, Some((sweep.id.clone(), vec![(1, 1)])));
+    // a holds run 0 alone: b's run 1 and the waiting run 2 are not a's to end.
+    let ends = vec![run_end(0, b"{\"run\": 0}"), run_end(1, b"not a's"), run_end(2, b"not started")];
+    assert_eq!(store.finish_sweep_runs(&sweep.id, "a", ends).await.unwrap(), 1);
+    let runs = store.sweep_runs(&sweep.id).await.unwrap();
+    let statuses: Vec<JobStatus> = runs.iter().map(|r| r.status).collect();
+    assert_eq!(statuses, [JobStatus::Succeeded, JobStatus::Running, JobStatus::Queued]);
+    assert_eq!(runs[0].result.as_deref(), Some(&b"{\"run\": 0}"[..]));
+    assert_eq!(store.finish_sweep_runs(&sweep.id, "b", vec![run_end(1, b"b's")]).await.unwrap(), 1);
+    assert_eq!(store.finish_sweep_runs(&sweep.id, "b", Vec::new()).await.unwrap(), 0);
+    let summary = store.sweep(&sweep.id).await.unwrap().unwrap();
+    assert_eq!((summary.finished, summary.running), (2, 0));
+}
+
+async fn a_hundred_ends_are_stored_at_once_each_with_its_own_result(store: Arc<dyn JobStore>) {
+    let sweep = sweep_entry(101, false);
+    store.insert_sweep(&sweep, "{}").await.unwrap();
+    let (_, claimed) = claim_runs(&*store, "a", T0, 100).await.unwrap();
+    assert_eq!(claimed.len(), 100);
+    let results: Vec<String> = (0..100).map(|i| format!("{{\"run\": {i}}}")).collect();
+    let mut ends: Vec<RunEnd> = (0..100).map(|i| run_end(i, results[i as usize].as_bytes())).collect();
+    ends[70] = RunEnd {
+        status: JobStatus::Failed,
+        message: Some("run 70 failed".into()),
+        result: None,
+        ..ends[70].clone()
+    };
+    assert_eq!(store.finish_sweep_runs(&sweep.id, "a", ends).await.unwrap(), 100);
+    let runs = store.sweep_runs(&sweep.id).await.unwrap();
+    for (i, run) in runs.iter().enumerate().take(100) {
+        if i == 70 {
+            assert_eq!(
+                (run.status, run.message.as_deref(), &run.result),
+                (JobStatus::Failed, Some("run 70 failed"), &None)
+            );
+        } else {
+            assert_eq!(
+                (run.status, run.result.as_deref()),
+                (JobStatus::Succeeded, Some(results[i].as_bytes())),
+                "run {i}"
+            );
+        }
+    }
+    assert_eq!(runs[100].status, JobStatus::Queued);
+    let summary = store.sweep(&sweep.id).await.unwrap().unwrap();
+    assert_eq!((summary.finished, summary.running), (100, 0));
+}
+
 /// A module named for the backend with one test per suite function, each carrying the
 /// attributes in brackets (for PostgreSQL, an `ignore` with what it needs).
 macro_rules! suite {
@@ -636,6 +721,9 @@ every_backend!(
     sweeps_are_stored_with_a_row_per_run_and_listed_newest_first,
     sweep_runs_are_claimed_in_batches_of_the_oldest_sweep_under_a_lease,
     cancelling_a_sweep_ends_its_waiting_runs_and_flags_its_running_ones,
+    a_sweep_idempotency_key_is_held_by_one_sweep,
+    the_ends_of_a_batch_are_stored_together_for_the_runs_still_held,
+    a_hundred_ends_are_stored_at_once_each_with_its_own_result,
 );
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -679,4 +767,11 @@ async fn postgres_instances_share_one_queue_and_one_key_space() {
     assert_eq!(claimed.record.id, keyed.id);
     assert!(claim(&one, "one", T0).await.is_none());
     assert_eq!(one.get(&keyed.id).await.unwrap().unwrap().status, JobStatus::Running);
+
+    let sweep = keyed_sweep(2, "shared", 1);
+    assert_eq!(one.insert_sweep(&sweep, "{}").await.unwrap(), InsertedSweep::New);
+    match two.insert_sweep(&keyed_sweep(2, "shared", 1), "{}").await.unwrap() {
+        InsertedSweep::KeyTaken(holder) => assert_eq!(holder.entry, sweep),
+        InsertedSweep::New => panic!("the other instance's sweep holds the key"),
+    }
 }

@@ -207,6 +207,58 @@ async fn deleting_a_sweep_cancels_every_run() {
     assert_eq!(sweep["cancel_requested"], true);
 }
 
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn an_idempotency_key_returns_the_same_sweep_or_refuses_a_different_document() {
+    let (_, app) = test_app(config(1, 16), ApiConfig::default());
+    let keyed = |body: &str| {
+        Request::post("/sweeps")
+            .header("content-type", "application/json")
+            .header("idempotency-key", "ci-sweep-9")
+            .body(Body::from(body.to_string()))
+            .unwrap()
+    };
+    let first = send(&app, keyed(&orders_sweep())).await;
+    assert_eq!(first.status, 202, "{}", first.text());
+    assert_eq!(first.header("idempotent-replayed"), None);
+    let id = first.json()["id"].as_str().unwrap().to_string();
+    // The same document with its keys in another order and other spacing is the same sweep.
+    let reordered = json!({
+        "reference": {"dt": 0.00001, "integrator": "rk4"},
+        "vary": {"/dt": [0.004, 0.002, 0.001], "/integrator": ["symplectic_euler", "rk4"]},
+        "scene": single_spring()
+    });
+    let again = send(&app, keyed(&serde_json::to_string_pretty(&reordered).unwrap())).await;
+    assert_eq!(again.status, 202, "{}", again.text());
+    assert_eq!(again.json()["id"], id.as_str());
+    assert_eq!(again.header("idempotent-replayed"), Some("true"));
+    assert_eq!(again.header("location"), Some(format!("/sweeps/{id}").as_str()));
+    let listed = get(&app, "/sweeps").await.json();
+    assert_eq!(listed["sweeps"].as_array().unwrap().len(), 1, "{listed}");
+
+    // Another document under the key is refused, and stores nothing.
+    let other = send(&app, keyed(&orders_sweep().replace("0.004", "0.008"))).await;
+    assert_eq!(other.status, 422, "{}", other.text());
+    let problem = other.problem();
+    assert_eq!(problem["type"], "/problems/idempotency-key-reused");
+    let detail = problem["detail"].as_str().unwrap();
+    assert!(detail.contains("ci-sweep-9") && detail.contains(&format!("sweep {id}")), "{detail}");
+    assert_eq!(get(&app, "/sweeps").await.json()["sweeps"].as_array().unwrap().len(), 1);
+    // A job's key space is its own: the same key on POST /jobs queues a job.
+    let job = Request::post("/jobs")
+        .header("content-type", "application/json")
+        .header("idempotency-key", "ci-sweep-9")
+        .body(Body::from(single_spring().to_string()))
+        .unwrap();
+    assert_eq!(send(&app, job).await.status, 202);
+
+    // Once the sweep has ended, its key still finds it, with its table.
+    until_complete(&app, &id).await;
+    let ended = send(&app, keyed(&orders_sweep())).await;
+    assert_eq!(ended.status, 202, "{}", ended.text());
+    assert_eq!(ended.json()["id"], id.as_str());
+    assert_eq!(ended.json()["complete"], true);
+}
+
 /// A sweep of `values` × 2 integrators of a 7-particle chain, tiny runs.
 fn tiny_chains(values: usize) -> String {
     let dts: Vec<f64> = (0..values).map(|n| 0.001 + 0.000_001 * n as f64).collect();

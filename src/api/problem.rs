@@ -149,8 +149,8 @@ pub enum AppError {
     KeyReused {
         /// The key.
         key: String,
-        /// The job that holds it.
-        job: JobId,
+        /// What holds it: `job <id>` or `sweep <id>`.
+        holder: String,
     },
     /// 429: the job queue is full; try again after `Retry-After` seconds.
     QueueFull {
@@ -360,11 +360,11 @@ impl AppError {
                 "The scene exceeds this server's limits",
                 errors.iter().map(|e| e.detail.as_str()).collect::<Vec<_>>().join("; "),
             ),
-            Self::KeyReused { key, job } => (
+            Self::KeyReused { key, holder } => (
                 "idempotency-key-reused",
                 "Idempotency-Key reused with a different body",
                 format!(
-                    "the Idempotency-Key `{key}` was first used for job {job} with a different scene; use a new key"
+                    "the Idempotency-Key `{key}` was first used for {holder} with a different body; use a new key"
                 ),
             ),
             Self::QueueFull { retry_after } => (
@@ -519,7 +519,7 @@ impl From<SubmitError> for AppError {
                     format!("{stage} costs {stage_work} of the run's {work} element-steps"),
                 )],
             },
-            SubmitError::KeyReused { key, job } => Self::KeyReused { key, job },
+            SubmitError::KeyReused { key, job } => Self::KeyReused { key, holder: format!("job {job}") },
             SubmitError::QueueFull => Self::QueueFull { retry_after: 1 },
             SubmitError::ShuttingDown => Self::ShuttingDown,
             SubmitError::Store(e) => e.into(),
@@ -569,6 +569,9 @@ impl From<SweepSubmitError> for AppError {
                 Self::InvalidSweep(vec![FieldError::new("/vary", format!("{e} (--max-sweep-variants)"))])
             }
             SweepSubmitError::OverLimit(errors) => Self::InvalidSweep(errors),
+            SweepSubmitError::KeyReused { key, sweep } => {
+                Self::KeyReused { key, holder: format!("sweep {sweep}") }
+            }
             SweepSubmitError::Submit(e) => e.into(),
             SweepSubmitError::Store(e) => e.into(),
         }

@@ -4,7 +4,9 @@
 //! (its runs may run on any instance sharing the store) and sends a `progress` event (the sweep
 //! as `GET /sweeps` lists it: `progress.finished`, `progress.running`, `progress.runs`) when it
 //! has moved, then one `end` event carrying the sweep with its table as `GET /sweeps/{id}` shows
-//! it, and closes.
+//! it, and closes. A batch of runs ending on this instance makes it look again at once, so the
+//! `end` of a sweep run here is sent as soon as it is stored; progress is still sent at most
+//! [`SAMPLES_PER_SECOND`] times a second.
 
 use std::convert::Infallible;
 use std::time::Duration;
@@ -33,7 +35,8 @@ pub async fn events(
     let period = Duration::from_secs(1) / SAMPLES_PER_SECOND;
     let mut ticks = interval_at(Instant::now() + period, period);
     ticks.set_missed_tick_behavior(MissedTickBehavior::Delay);
-    let follow = Follow { state, id, last: None, sample_due: true, ended: false };
+    let changes = state.jobs.sweep_changes();
+    let follow = Follow { state, id, changes, last: None, sample_due: true, ended: false };
     let stream = stream::unfold((follow, ticks), |(mut follow, mut ticks)| async move {
         let event = follow.next(&mut ticks).await?;
         Some((Ok(event), (follow, ticks)))
@@ -44,6 +47,8 @@ pub async fn events(
 struct Follow {
     state: AppState,
     id: JobId,
+    /// Changes when runs end on this instance.
+    changes: tokio::sync::watch::Receiver<u64>,
     /// Runs finished and running at the last `progress` event.
     last: Option<(u32, u32)>,
     /// Whether a sample period has passed since the last `progress` event.
@@ -59,8 +64,10 @@ impl Follow {
                 return None;
             }
             if !self.sample_due {
-                ticks.tick().await;
-                self.sample_due = true;
+                tokio::select! {
+                    _ = ticks.tick() => self.sample_due = true,
+                    Ok(()) = self.changes.changed() => {}
+                }
             }
             let summary = match self.state.jobs.sweep(&self.id).await {
                 Ok(Some(summary)) => summary,
@@ -72,6 +79,9 @@ impl Follow {
                     Ok(sweep) => Some(Event::default().event("end").data(sweep_view(&sweep).to_string())),
                     Err(_) => Some(self.error()),
                 };
+            }
+            if !self.sample_due {
+                continue;
             }
             let now = Some((summary.finished, summary.running));
             if self.last != now {

@@ -8,31 +8,41 @@ use axum::response::{IntoResponse, Response};
 use serde_json::{Value, json};
 
 use super::AppState;
-use super::extract::{JsonBody, PageQuery, SweepPath};
+use super::extract::{IdempotencyKey, JsonBody, PageQuery, SweepPath};
 use super::problem::AppError;
 use super::views::rfc3339;
 use crate::assets::has_references;
-use crate::jobs::{JobId, Page, SweepState, SweepSummary};
+use crate::jobs::{Idempotency, JobId, Page, SweepState, SweepSummary, fingerprint};
 use crate::scene::FieldError;
 
 /// `POST /sweeps`: puts the meshes its base scene names by `"asset"` in place, checks the sweep
 /// (pointers, values, variant count, every run's limits) and stores it, one entry whatever its
 /// size, with its reference and every variant waiting to run; `202` with the sweep and its
-/// `Location`.
+/// `Location`. A repeated `Idempotency-Key` with the same document answers with the same sweep.
 pub async fn submit(
     State(state): State<AppState>,
+    IdempotencyKey(key): IdempotencyKey,
     JsonBody(mut document): JsonBody,
 ) -> Result<Response, AppError> {
+    // The document as sent, before its meshes are put in, is what a repeat must match.
+    let idempotency = key.map(|key| Idempotency { key, fingerprint: fingerprint(&document) });
     // The base scene's `"asset"` references are resolved once, so every variant holds the mesh.
     if let Some(scene) = document.get_mut("scene").filter(|scene| has_references(scene)) {
         state.jobs.resolve_assets(scene, "/scene").await?;
     }
-    let summary = state.jobs.submit_sweep(document, state.config.max_sweep_variants).await?;
-    let sweep = state.jobs.sweep_state(summary).await?;
+    let submitted = state.jobs.submit_sweep(document, state.config.max_sweep_variants, idempotency).await?;
+    let sweep = if submitted.repeated {
+        state.jobs.sweep_state(submitted.summary).await?
+    } else {
+        state.jobs.queued_sweep_state(submitted.summary).await?
+    };
     let id = sweep.summary.entry.id.clone();
     let mut response = (StatusCode::ACCEPTED, Json(sweep_view(&sweep))).into_response();
     let location = HeaderValue::from_str(&format!("/sweeps/{id}")).expect("sweep ids are URL-safe");
     response.headers_mut().insert(header::LOCATION, location);
+    if submitted.repeated {
+        response.headers_mut().insert("idempotent-replayed", HeaderValue::from_static("true"));
+    }
     Ok(response)
 }
 

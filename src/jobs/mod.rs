@@ -50,8 +50,10 @@ pub use service::{Cancelled, Ended, Jobs, Submission, SubmitError, Submitted};
 pub use status::{Failure, JobStatus};
 pub use store::{
     AssetRecord, AssetRoom, CancelRequest, Claim, Claimed, ClaimedRun, ClaimedRuns, HeldRun, Inserted,
-    JobStore, Lease, MemoryStore, Outcome, Page, PostgresStore, PutAsset, Renewed, RunEnd, SqliteStore,
-    StoreError, StoreUrl, StoredResult, StoredRun, SweepEntry, SweepSummary, attempts_exhausted,
+    InsertedSweep, JobStore, Lease, MemoryStore, Outcome, Page, PostgresStore, PutAsset, Renewed, RunEnd,
+    SqliteStore, StoreError, StoreUrl, StoredResult, StoredRun, SweepEntry, SweepSummary, attempts_exhausted,
 };
-pub use sweeps::{SweepDocumentError, SweepState, SweepSubmitError, admit_for_table, sweep_over_limit};
+pub use sweeps::{
+    SweepDocumentError, SweepState, SweepSubmitError, SweepSubmitted, admit_for_table, sweep_over_limit,
+};
 pub use untrusted::{Refusal, check_untrusted};

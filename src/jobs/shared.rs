@@ -75,11 +75,7 @@ impl Shared {
     /// the first time; `None` if the store has no such sweep. Call it off the async runtime: it
     /// blocks on the store and checks every variant.
     pub(super) fn sweep_blocking(&self, id: &JobId) -> Result<Option<Arc<Sweep>>, StoreError> {
-        let kept = |s: &Self| {
-            let sweeps = s.sweeps.lock().unwrap_or_else(PoisonError::into_inner);
-            sweeps.iter().find(|(kept, _)| kept == id).map(|(_, sweep)| Arc::clone(sweep))
-        };
-        if let Some(sweep) = kept(self) {
+        if let Some(sweep) = self.kept_sweep(id) {
             return Ok(Some(sweep));
         }
         let Some(document) = self.runtime.block_on(self.store.sweep_document(id))? else { return Ok(None) };
@@ -88,12 +84,23 @@ impl Shared {
             .and_then(|document| sweep_for_table(document, u64::MAX).map_err(|e| e.to_string()))
             .map_err(|e| StoreError::Backend(format!("the stored sweep {id} cannot be read: {e}")))?;
         let sweep = Arc::new(sweep);
+        self.keep_sweep(id, Arc::clone(&sweep));
+        Ok(Some(sweep))
+    }
+
+    /// The sweep with this id if it is kept here, checked, as run for its table.
+    pub(super) fn kept_sweep(&self, id: &JobId) -> Option<Arc<Sweep>> {
+        let sweeps = self.sweeps.lock().unwrap_or_else(PoisonError::into_inner);
+        sweeps.iter().find(|(kept, _)| kept == id).map(|(_, sweep)| Arc::clone(sweep))
+    }
+
+    /// Keeps a sweep checked, as run for its table, among the most recently used.
+    pub(super) fn keep_sweep(&self, id: &JobId, sweep: Arc<Sweep>) {
         let mut sweeps = self.sweeps.lock().unwrap_or_else(PoisonError::into_inner);
         if sweeps.len() >= SWEEPS_KEPT {
             sweeps.remove(0);
         }
-        sweeps.push((id.clone(), Arc::clone(&sweep)));
-        Ok(Some(sweep))
+        sweeps.push((id.clone(), sweep));
     }
 
     /// A lease for this instance from now.

@@ -1,5 +1,5 @@
 //! A worker's turn at a sweep: it claims a batch of one sweep's runs, runs them one after
-//! another, stores each run's end as it comes, and goes back to the queue.
+//! another, stores their ends, and goes back to the queue.
 //!
 //! The policy between sweeps and single jobs: a worker takes a queued job first, and only when
 //! none is queued a batch of runs of the oldest sweep with runs waiting. It starts no further run
@@ -12,7 +12,9 @@
 //! single jobs delays them, never the reverse.
 //!
 //! A run keeps only what its table row needs: its status, why it failed, and its final positions
-//! and statistics as JSON. A run started more than `--max-attempts` times without ending is
+//! and statistics as JSON. The ends of the runs a worker ran are stored together, in one
+//! transaction, once [`STORE_EVERY`] has passed since the last were stored and when the batch is
+//! over: tiny runs cost one write for dozens of them, and a long run's end is stored as it comes. A run started more than `--max-attempts` times without ending is
 //! failed instead of run; a run of a cancelled sweep ends `cancelled`; at shutdown the runs of
 //! the batch not ended go back to the queue.
 
@@ -22,6 +24,7 @@ use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 
 use super::encode::encode_result;
+use super::id::JobId;
 use super::live::{CANCELLED, SHUT_DOWN};
 use super::record::now_ms;
 use super::shared::Shared;
@@ -35,6 +38,8 @@ use crate::sweep::Sweep;
 pub(super) const BATCH_RUNS: u32 = 64;
 /// How long a worker keeps starting runs of one batch.
 pub(super) const BATCH_TIME: Duration = Duration::from_millis(200);
+/// How long the ends of runs may wait to be stored together.
+const STORE_EVERY: Duration = Duration::from_millis(20);
 
 /// Claims a batch of at most `size` runs of a sweep and runs it; returns the size of the next
 /// batch, or `None` if there were no runs to claim.
@@ -48,6 +53,7 @@ pub(super) fn run_sweep_batch(shared: &Shared, size: u32) -> Result<Option<u32>,
     tracing::debug!(sweep = %id, runs = runs.len(), "sweep runs claimed");
     let sweep = shared.sweep_blocking(&id);
     let began = Instant::now();
+    let mut ends = Ends { pending: Vec::new(), stored: Instant::now() };
     for (done, run) in runs.iter().enumerate() {
         let out_of_turn = done > 0 && began.elapsed() > BATCH_TIME;
         if out_of_turn
@@ -77,22 +83,45 @@ pub(super) fn run_sweep_batch(shared: &Shared, size: u32) -> Result<Option<u32>,
             release(shared, &batch, &runs[done..]);
             break;
         }
-        match shared.runtime.block_on(shared.store.finish_sweep_run(&id, &shared.owner, end)) {
-            Ok(true) => {}
-            Ok(false) => {
-                tracing::warn!(sweep = %id, run = run.index, "lost the run's lease; its end here is not recorded")
-            }
-            Err(e) => {
-                tracing::error!(sweep = %id, run = run.index, error = %e, "cannot store the end of a sweep run; it runs again once its lease lapses")
-            }
+        ends.pending.push(end);
+        if ends.stored.elapsed() >= STORE_EVERY {
+            ends.store(shared, &id);
         }
     }
+    ends.store(shared, &id);
     if began.elapsed() > BATCH_TIME {
         next_size = 1;
     }
     shared.batches().retain(|b| !Arc::ptr_eq(b, &batch));
     shared.changed();
     Ok(Some(next_size))
+}
+
+/// Ends of runs not yet stored, and when the last were.
+struct Ends {
+    pending: Vec<RunEnd>,
+    stored: Instant,
+}
+
+impl Ends {
+    /// Stores the pending ends of `sweep`'s runs in one transaction.
+    fn store(&mut self, shared: &Shared, sweep: &JobId) {
+        self.stored = Instant::now();
+        if self.pending.is_empty() {
+            return;
+        }
+        let ends = std::mem::take(&mut self.pending);
+        let count = ends.len();
+        match shared.runtime.block_on(shared.store.finish_sweep_runs(sweep, &shared.owner, ends)) {
+            Ok(recorded) if recorded == count => {}
+            Ok(recorded) => {
+                tracing::warn!(sweep = %sweep, runs = count - recorded, "lost the lease of runs; their ends here are not recorded")
+            }
+            Err(e) => {
+                tracing::error!(sweep = %sweep, runs = count, error = %e, "cannot store the ends of sweep runs; they run again once their lease lapses")
+            }
+        }
+    }
 }
 
 /// Puts runs not ended back in the queue.

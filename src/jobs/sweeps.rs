@@ -9,6 +9,10 @@
 //! no varied value is to blame. However many runs it makes, a sweep takes no room in the job
 //! queue: its runs wait in their own rows, so a sweep of thousands of variants is accepted by a
 //! server with a small `--queue-capacity`, and stays in the store across restarts.
+//!
+//! A sweep submitted with an idempotency key is stored with it: the same key with the same
+//! document (by [`fingerprint`](super::fingerprint)) finds the sweep it made, on any instance
+//! sharing the store, and the same key with another document is refused, as for a job.
 
 use std::io;
 use std::sync::Arc;
@@ -19,11 +23,11 @@ use thiserror::Error;
 use super::id::JobId;
 use super::limits::Limits;
 use super::live::CANCELLED;
-use super::record::now_ms;
+use super::record::{Idempotency, now_ms};
 use super::service::{Jobs, SubmitError};
 use super::shared::{keep_final_positions, sweep_for_table};
 use super::status::JobStatus;
-use super::store::{Page, StoreError, StoredRun, SweepEntry, SweepSummary};
+use super::store::{InsertedSweep, Page, StoreError, StoredRun, SweepEntry, SweepSummary};
 use crate::output::read_json;
 use crate::scene::{FieldError, Scene};
 use crate::sweep::{Outcome, Sweep, SweepError, Table, write_csv, write_svg};
@@ -65,6 +69,15 @@ impl SweepState {
     }
 }
 
+/// A sweep accepted by [`Jobs::submit_sweep`].
+#[derive(Debug)]
+pub struct SweepSubmitted {
+    /// The sweep as stored.
+    pub summary: SweepSummary,
+    /// Whether it is an earlier sweep with the same idempotency key and document.
+    pub repeated: bool,
+}
+
 /// Why a sweep was refused.
 #[derive(Debug, Error)]
 pub enum SweepSubmitError {
@@ -78,6 +91,14 @@ pub enum SweepSubmitError {
     /// The server is shutting down, or the store failed.
     #[error(transparent)]
     Submit(#[from] SubmitError),
+    /// The idempotency key was first used with another document.
+    #[error("the Idempotency-Key `{key}` was already used for sweep {sweep} with a different document")]
+    KeyReused {
+        /// The key.
+        key: String,
+        /// The sweep that holds it.
+        sweep: JobId,
+    },
     /// The store failed.
     #[error(transparent)]
     Store(#[from] StoreError),
@@ -85,12 +106,19 @@ pub enum SweepSubmitError {
 
 impl Jobs {
     /// Checks a sweep document (at most `max_variants` variants, every run within the limits)
-    /// and stores it with a queued row for its reference and each variant.
+    /// and stores it with a queued row for its reference and each variant, or finds the earlier
+    /// sweep with the same idempotency key.
     pub async fn submit_sweep(
         &self,
         document: Value,
         max_variants: u64,
-    ) -> Result<SweepSummary, SweepSubmitError> {
+        idempotency: Option<Idempotency>,
+    ) -> Result<SweepSubmitted, SweepSubmitError> {
+        if let Some(key) = &idempotency
+            && let Some(earlier) = self.shared.store.find_sweep_by_key(&key.key).await?
+        {
+            return repeat_of(earlier, key);
+        }
         let vary_lists = vary_lists(&document);
         let stored = document.to_string();
         let sweep = sweep_for_table(document, max_variants)?;
@@ -115,16 +143,29 @@ impl Jobs {
                 limit: u64::from(u32::MAX),
             })?,
             has_reference: sweep.reference.is_some(),
+            idempotency,
         };
-        self.shared.store.insert_sweep(&entry, &stored).await?;
+        if let InsertedSweep::KeyTaken(earlier) = self.shared.store.insert_sweep(&entry, &stored).await? {
+            let key = entry.idempotency.as_ref().expect("only a keyed sweep can find its key taken");
+            return repeat_of(*earlier, key);
+        }
+        // Checked once: this instance's workers and tables use it as it is.
+        self.shared.keep_sweep(&entry.id, Arc::new(sweep));
         self.shared.doorbell.ring_all();
         tracing::info!(sweep = %entry.id, runs, "sweep queued");
-        Ok(SweepSummary { entry, cancel_requested: false, finished: 0, running: 0 })
+        let summary = SweepSummary { entry, cancel_requested: false, finished: 0, running: 0 };
+        Ok(SweepSubmitted { summary, repeated: false })
     }
 
     /// The sweep with this id, with how far its runs have got.
     pub async fn sweep(&self, id: &JobId) -> Result<Option<SweepSummary>, StoreError> {
         self.shared.store.sweep(id).await
+    }
+
+    /// A channel that changes whenever a batch of sweep runs (or a job) ends on this instance,
+    /// so a follower of a sweep learns of its end without waiting for its next look.
+    pub fn sweep_changes(&self) -> tokio::sync::watch::Receiver<u64> {
+        self.shared.changes.subscribe()
     }
 
     /// Sweeps, newest first.
@@ -147,6 +188,17 @@ impl Jobs {
         .map_err(|e| StoreError::Backend(format!("assembling the sweep table failed: {e}")))?
     }
 
+    /// The table of a sweep [`submit_sweep`](Self::submit_sweep) has just stored: its runs
+    /// are all queued, so none is read back.
+    pub async fn queued_sweep_state(&self, summary: SweepSummary) -> Result<SweepState, StoreError> {
+        let Some(sweep) = self.shared.kept_sweep(&summary.entry.id) else {
+            return self.sweep_state(summary).await;
+        };
+        let queued = || StoredRun { status: JobStatus::Queued, message: None, result: None };
+        let runs = (0..summary.entry.runs).map(|_| queued()).collect();
+        Ok(assemble(summary, &sweep, runs))
+    }
+
     /// Cancels a sweep: its runs not started end at once, and those running (here or on another
     /// instance) stop within a lease renewal. `None` if there is no such sweep.
     pub async fn cancel_sweep(&self, id: &JobId) -> Result<Option<SweepSummary>, StoreError> {
@@ -156,6 +208,16 @@ impl Jobs {
             self.shared.changed();
         }
         Ok(summary)
+    }
+}
+
+/// The earlier sweep that holds `key`, if it was made from the same document.
+fn repeat_of(earlier: SweepSummary, key: &Idempotency) -> Result<SweepSubmitted, SweepSubmitError> {
+    match &earlier.entry.idempotency {
+        Some(held) if held.fingerprint == key.fingerprint => {
+            Ok(SweepSubmitted { summary: earlier, repeated: true })
+        }
+        _ => Err(SweepSubmitError::KeyReused { key: key.key.clone(), sweep: earlier.entry.id }),
     }
 }
 

@@ -1819,7 +1819,15 @@ export interface operations {
     submitSweep: {
         parameters: {
             query?: never;
-            header?: never;
+            header?: {
+                /**
+                 * @description 1 to 255 visible ASCII characters. The same key with the same sweep document (keys
+                 *     in any order, any spacing) answers with the same sweep, on any instance sharing the
+                 *     store, while the sweep is kept; the same key with a different document is a 422.
+                 *     Sweeps and jobs have separate keys.
+                 */
+                "Idempotency-Key"?: string;
+            };
             path?: never;
             cookie?: never;
         };
@@ -1829,11 +1837,13 @@ export interface operations {
             };
         };
         responses: {
-            /** @description Queued. */
+            /** @description Queued (or, for a repeated Idempotency-Key, the earlier sweep as it stands). */
             202: {
                 headers: {
                     /** @description The sweep, `/sweeps/{id}`. */
                     Location?: string;
+                    /** @description `true` when the sweep is the earlier one with the same key. */
+                    "Idempotent-Replayed"?: string;
                     [name: string]: unknown;
                 };
                 content: {

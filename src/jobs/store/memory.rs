@@ -11,8 +11,8 @@ use async_trait::async_trait;
 
 use super::{
     AssetRecord, AssetRoom, CancelRequest, Claim, Claimed, ClaimedRun, ClaimedRuns, HeldRun, Inserted,
-    JobStore, Lease, Outcome, Page, PutAsset, Renewed, RunEnd, StoreError, StoredResult, StoredRun,
-    SweepEntry, SweepSummary, attempts_exhausted,
+    InsertedSweep, JobStore, Lease, Outcome, Page, PutAsset, Renewed, RunEnd, StoreError, StoredResult,
+    StoredRun, SweepEntry, SweepSummary, attempts_exhausted,
 };
 use crate::jobs::id::JobId;
 use crate::jobs::record::JobRecord;
@@ -415,22 +415,29 @@ impl JobStore for MemoryStore {
         }))
     }
 
-    async fn insert_sweep(&self, sweep: &SweepEntry, document: &str) -> Result<(), StoreError> {
+    async fn insert_sweep(&self, sweep: &SweepEntry, document: &str) -> Result<InsertedSweep, StoreError> {
         let queued = || RunState {
             stored: StoredRun { status: JobStatus::Queued, message: None, result: None },
             attempts: 0,
             lease: None,
             cancel_requested: false,
         };
-        self.with(|s| {
+        Ok(self.with(|s| {
+            if let Some(holder) = sweep.idempotency.as_ref().and_then(|key| s.sweep_keyed(&key.key)) {
+                return InsertedSweep::KeyTaken(Box::new(holder.summary()));
+            }
             s.sweeps.push(SweepState {
                 entry: sweep.clone(),
                 document: document.to_string(),
                 cancel_requested: false,
                 runs: (0..sweep.runs).map(|_| queued()).collect(),
-            })
-        });
-        Ok(())
+            });
+            InsertedSweep::New
+        }))
+    }
+
+    async fn find_sweep_by_key(&self, key: &str) -> Result<Option<SweepSummary>, StoreError> {
+        Ok(self.with(|s| s.sweep_keyed(key).map(SweepState::summary)))
     }
 
     async fn sweep(&self, id: &JobId) -> Result<Option<SweepSummary>, StoreError> {
@@ -558,6 +565,10 @@ impl JobStore for MemoryStore {
 impl State {
     fn sweep(&self, id: &JobId) -> Option<&SweepState> {
         self.sweeps.iter().find(|sweep| &sweep.entry.id == id)
+    }
+
+    fn sweep_keyed(&self, key: &str) -> Option<&SweepState> {
+        self.sweeps.iter().find(|sweep| sweep.entry.idempotency.as_ref().is_some_and(|i| i.key == key))
     }
 
     fn sweep_mut(&mut self, id: &JobId) -> Option<&mut SweepState> {

@@ -19,7 +19,8 @@
 //!
 //! A sweep is one entry ([`SweepEntry`], with its document) and a row per run: workers claim a
 //! batch of one sweep's runs at once under a lease ([`JobStore::claim_sweep_runs`]), counting an
-//! attempt like a job's claim, and store each run's end as it comes.
+//! attempt like a job's claim, and store the ends of the runs they ran together
+//! ([`JobStore::finish_sweep_runs`]).
 //!
 //! The backends are [`MemoryStore`], [`SqliteStore`] (the default) and [`PostgresStore`]
 //! (several instances, one queue); the two SQL ones share their statements (`sql`), and
@@ -40,7 +41,9 @@ pub use memory::MemoryStore;
 pub use open::StoreUrl;
 pub use postgres::PostgresStore;
 pub use sqlite::SqliteStore;
-pub use sweep_rows::{ClaimedRun, ClaimedRuns, HeldRun, RunEnd, StoredRun, SweepEntry, SweepSummary};
+pub use sweep_rows::{
+    ClaimedRun, ClaimedRuns, HeldRun, InsertedSweep, RunEnd, StoredRun, SweepEntry, SweepSummary,
+};
 
 use crate::jobs::id::JobId;
 use crate::jobs::record::JobRecord;
@@ -286,8 +289,12 @@ pub trait JobStore: Send + Sync + 'static {
     /// Deletes an asset; returns whether there was one.
     async fn delete_asset(&self, id: &str) -> Result<bool, StoreError>;
 
-    /// Adds a sweep with its document and a queued row for each of its runs.
-    async fn insert_sweep(&self, sweep: &SweepEntry, document: &str) -> Result<(), StoreError>;
+    /// Adds a sweep with its document and a queued row for each of its runs, unless its
+    /// idempotency key is already held.
+    async fn insert_sweep(&self, sweep: &SweepEntry, document: &str) -> Result<InsertedSweep, StoreError>;
+
+    /// The sweep that holds this idempotency key.
+    async fn find_sweep_by_key(&self, key: &str) -> Result<Option<SweepSummary>, StoreError>;
 
     /// The sweep with this id, with how far its runs have got.
     async fn sweep(&self, id: &JobId) -> Result<Option<SweepSummary>, StoreError>;
@@ -316,6 +323,21 @@ pub trait JobStore: Send + Sync + 'static {
 
     /// Records how a run ended, if `owner` still holds it; returns whether it did.
     async fn finish_sweep_run(&self, sweep: &JobId, owner: &str, end: RunEnd) -> Result<bool, StoreError>;
+
+    /// Records how each of `ends` ended, for the runs `owner` still holds, in one transaction
+    /// where the backend has them; returns how many it recorded.
+    async fn finish_sweep_runs(
+        &self,
+        sweep: &JobId,
+        owner: &str,
+        ends: Vec<RunEnd>,
+    ) -> Result<usize, StoreError> {
+        let mut recorded = 0;
+        for end in ends {
+            recorded += usize::from(self.finish_sweep_run(sweep, owner, end).await?);
+        }
+        Ok(recorded)
+    }
 
     /// Puts runs `owner` holds back in the queue; the attempts they were claimed with are not
     /// counted.

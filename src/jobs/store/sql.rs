@@ -13,7 +13,9 @@
 //! twice with `attempts` never counted. A job given up after `--max-attempts` is failed in the
 //! same transaction, its `attempts` left at the number of starts.
 //!
-//! Results are deflate-compressed on the way in and inflated on the way out.
+//! Results are deflate-compressed on the way in and inflated on the way out, except a sweep
+//! run's small result: a few hundred bytes of JSON cost far more to deflate and inflate than to
+//! store as they are.
 
 use std::io::{Read, Write};
 
@@ -33,6 +35,7 @@ pub(super) const COLUMNS: &str = "id, status, created_ms, started_ms, finished_m
 
 /// The columns of a sweep (`s`) as [`SweepRow`] reads them, with its runs counted.
 const SWEEP_COLUMNS: &str = "s.id, s.created_ms, s.runs, s.has_reference, s.cancel_requested, \
+     s.idem_key, s.idem_fingerprint, \
      (SELECT COUNT(*) FROM sweep_runs r WHERE r.sweep_id = s.id AND r.status NOT IN ('queued', 'running')) \
      AS finished, \
      (SELECT COUNT(*) FROM sweep_runs r WHERE r.sweep_id = s.id AND r.status = 'running') AS running";
@@ -45,6 +48,8 @@ pub(super) struct SweepRow {
     runs: i64,
     has_reference: bool,
     cancel_requested: bool,
+    idem_key: Option<String>,
+    idem_fingerprint: Option<i64>,
     finished: i64,
     running: i64,
 }
@@ -59,6 +64,7 @@ impl SweepRow {
                 created_ms: self.created_ms as u64,
                 runs: count(self.runs)?,
                 has_reference: self.has_reference,
+                idempotency: idempotency(self.idem_key, self.idem_fingerprint),
             },
             cancel_requested: self.cancel_requested,
             finished: count(self.finished)?,
@@ -80,7 +86,7 @@ impl RunRow {
         Ok(super::StoredRun {
             status: status(&self.status)?,
             message: self.message,
-            result: self.result.as_deref().map(decompress).transpose()?,
+            result: self.result.as_deref().map(unpack_run_result).transpose()?,
         })
     }
 }
@@ -154,6 +160,7 @@ pub(super) struct Statements {
     pub delete_asset: String,
     pub insert_sweep: String,
     pub insert_sweep_runs: String,
+    pub find_sweep_by_key: String,
     pub sweep: String,
     pub sweep_document: String,
     pub list_sweeps: String,
@@ -161,6 +168,8 @@ pub(super) struct Statements {
     pub claim_sweep_runs: String,
     pub renew_sweep_runs: String,
     pub finish_sweep_run: String,
+    /// Ends `n` runs of one sweep in one statement, at index `n - 1`, up to [`RUN_ENDS_AT_ONCE`].
+    pub finish_sweep_runs: Vec<String>,
     pub release_sweep_run: String,
     pub flag_sweep_cancel: String,
     pub cancel_sweep_runs_now: String,
@@ -257,7 +266,8 @@ impl Statements {
             list_assets: format!("SELECT {ASSET_COLUMNS} FROM assets ORDER BY seq DESC"),
             delete_asset: placeholders("DELETE FROM assets WHERE id = $1".into()),
             insert_sweep: placeholders(
-                "INSERT INTO sweeps (id, created_ms, runs, has_reference, document) VALUES ($1, $2, $3, $4, $5)"
+                "INSERT INTO sweeps (id, created_ms, runs, has_reference, document, idem_key, idem_fingerprint) \
+                 VALUES ($1, $2, $3, $4, $5, $6, $7) ON CONFLICT (idem_key) DO NOTHING"
                     .into(),
             ),
             // One statement makes every run's row, however many there are.
@@ -266,6 +276,7 @@ impl Statements {
                  INSERT INTO sweep_runs (sweep_id, idx, status) SELECT $1, i, 'queued' FROM n"
                     .into(),
             ),
+            find_sweep_by_key: placeholders(format!("SELECT {SWEEP_COLUMNS} FROM sweeps s WHERE s.idem_key = $1")),
             sweep: placeholders(format!("SELECT {SWEEP_COLUMNS} FROM sweeps s WHERE s.id = $1")),
             sweep_document: placeholders("SELECT document FROM sweeps WHERE id = $1".into()),
             list_sweeps: placeholders(format!(
@@ -297,6 +308,7 @@ impl Statements {
                  WHERE sweep_id = $4 AND idx = $5 AND status = 'running' AND lease_owner = $6"
                     .into(),
             ),
+            finish_sweep_runs: (1..=RUN_ENDS_AT_ONCE).map(|n| placeholders(finish_runs(n))).collect(),
             release_sweep_run: placeholders(
                 "UPDATE sweep_runs SET status = 'queued', attempts = attempts - 1, lease_owner = NULL, \
                  lease_until_ms = NULL \
@@ -367,10 +379,7 @@ impl JobRow {
                     .ok_or_else(|| corrupt(format!("a failure `{name}`")))
             })
             .transpose()?;
-        let idempotency = match (self.idem_key, self.idem_fingerprint) {
-            (Some(key), Some(fingerprint)) => Some(Idempotency { key, fingerprint: fingerprint as u64 }),
-            _ => None,
-        };
+        let idempotency = idempotency(self.idem_key, self.idem_fingerprint);
         Ok(JobRecord {
             id,
             status,
@@ -392,6 +401,32 @@ impl JobRow {
             idempotency,
             attempts: u32::try_from(self.attempts).unwrap_or(u32::MAX),
         })
+    }
+}
+
+/// Run ends stored by one statement at most.
+pub(super) const RUN_ENDS_AT_ONCE: usize = 64;
+
+/// The statement that ends `n` held runs of sweep `$1` for owner `$2`, each given by four
+/// parameters from `$3` on: its number, status, message and result. A `VALUES` list's columns
+/// are `column1`, `column2`, ... in both SQLite and PostgreSQL.
+fn finish_runs(n: usize) -> String {
+    let rows: Vec<String> =
+        (0..n).map(|i| format!("(${}, ${}, ${}, ${})", 4 * i + 3, 4 * i + 4, 4 * i + 5, 4 * i + 6)).collect();
+    format!(
+        "UPDATE sweep_runs SET status = v.column2, message = v.column3, result = v.column4, \
+         lease_owner = NULL, lease_until_ms = NULL FROM (VALUES {}) AS v \
+         WHERE sweep_runs.sweep_id = $1 AND sweep_runs.idx = v.column1 \
+         AND sweep_runs.status = 'running' AND sweep_runs.lease_owner = $2",
+        rows.join(", ")
+    )
+}
+
+/// An idempotency key as its two columns hold it.
+fn idempotency(key: Option<String>, fingerprint: Option<i64>) -> Option<Idempotency> {
+    match (key, fingerprint) {
+        (Some(key), Some(fingerprint)) => Some(Idempotency { key, fingerprint: fingerprint as u64 }),
+        _ => None,
     }
 }
 
@@ -422,6 +457,27 @@ pub(super) fn decompress(bytes: &[u8]) -> Result<Bytes, StoreError> {
         .read_to_end(&mut out)
         .map_err(|e| corrupt(format!("a damaged result ({e})")))?;
     Ok(Bytes::from(out))
+}
+
+/// Results of sweep runs up to this size are stored as they are.
+const RAW_RUN_RESULT: usize = 16 * 1024;
+
+/// A sweep run's result (always JSON) as stored: as it is when small, else deflated.
+pub(super) fn pack_run_result(bytes: &[u8]) -> Result<Vec<u8>, StoreError> {
+    if bytes.len() <= RAW_RUN_RESULT && bytes.first() == Some(&b'{') {
+        return Ok(bytes.to_vec());
+    }
+    compress(bytes)
+}
+
+/// A sweep run's stored result. A JSON object is stored as it is; a deflate stream never
+/// starts with the byte `{`: its first byte says a final fixed-code block whose first code is
+/// that of a byte from 224 to 239, which no JSON document starts with.
+pub(super) fn unpack_run_result(bytes: &[u8]) -> Result<Bytes, StoreError> {
+    match bytes.first() {
+        Some(b'{') => Ok(Bytes::copy_from_slice(bytes)),
+        _ => decompress(bytes),
+    }
 }
 
 /// The media types a result can have, as the `'static` strings [`StoredResult`] holds.
@@ -827,25 +883,52 @@ macro_rules! sql_store {
                 &self,
                 sweep: &$crate::jobs::SweepEntry,
                 document: &str,
-            ) -> Result<(), $crate::jobs::StoreError> {
+            ) -> Result<$crate::jobs::InsertedSweep, $crate::jobs::StoreError> {
                 use $crate::jobs::store::sql::{backend, int};
                 let mut tx = self.pool.begin().await.map_err(backend)?;
-                sqlx::query(&self.sql.insert_sweep)
+                let inserted = sqlx::query(&self.sql.insert_sweep)
                     .bind(sweep.id.as_str())
                     .bind(int(sweep.created_ms))
                     .bind(i64::from(sweep.runs))
                     .bind(sweep.has_reference)
                     .bind(document)
+                    .bind(sweep.idempotency.as_ref().map(|i| i.key.clone()))
+                    .bind(sweep.idempotency.as_ref().map(|i| int(i.fingerprint)))
                     .execute(&mut *tx)
                     .await
                     .map_err(backend)?;
+                if inserted.rows_affected() == 0 {
+                    tx.rollback().await.map_err(backend)?;
+                    let key = sweep.idempotency.as_ref().map(|i| i.key.as_str()).unwrap_or_default();
+                    return match self.find_sweep_by_key(key).await? {
+                        Some(holder) => Ok($crate::jobs::InsertedSweep::KeyTaken(Box::new(holder))),
+                        None => Err($crate::jobs::StoreError::Backend(format!(
+                            "sweep {} was not inserted",
+                            sweep.id
+                        ))),
+                    };
+                }
                 sqlx::query(&self.sql.insert_sweep_runs)
                     .bind(sweep.id.as_str())
                     .bind(i64::from(sweep.runs))
                     .execute(&mut *tx)
                     .await
                     .map_err(backend)?;
-                tx.commit().await.map_err(backend)
+                tx.commit().await.map_err(backend)?;
+                Ok($crate::jobs::InsertedSweep::New)
+            }
+
+            async fn find_sweep_by_key(
+                &self,
+                key: &str,
+            ) -> Result<Option<$crate::jobs::SweepSummary>, $crate::jobs::StoreError> {
+                sqlx::query_as::<_, $crate::jobs::store::sql::SweepRow>(&self.sql.find_sweep_by_key)
+                    .bind(key)
+                    .fetch_optional(&self.pool)
+                    .await
+                    .map_err($crate::jobs::store::sql::backend)?
+                    .map($crate::jobs::store::sql::SweepRow::into_summary)
+                    .transpose()
             }
 
             async fn sweep(
@@ -898,7 +981,7 @@ macro_rules! sql_store {
                     .fetch_all(&self.pool)
                     .await
                     .map_err($crate::jobs::store::sql::backend)?;
-                // Inflating every run's result is CPU work that grows with the sweep.
+                // Inflating runs' results is CPU work that grows with the sweep.
                 tokio::task::spawn_blocking(move || rows.into_iter().map(|row| row.into_run()).collect())
                     .await
                     .map_err(|e| $crate::jobs::StoreError::Backend(e.to_string()))?
@@ -954,8 +1037,8 @@ macro_rules! sql_store {
                 owner: &str,
                 end: $crate::jobs::RunEnd,
             ) -> Result<bool, $crate::jobs::StoreError> {
-                use $crate::jobs::store::sql::{backend, compress};
-                let result = end.result.as_deref().map(compress).transpose()?;
+                use $crate::jobs::store::sql::{backend, pack_run_result};
+                let result = end.result.as_deref().map(pack_run_result).transpose()?;
                 let ended = sqlx::query(&self.sql.finish_sweep_run)
                     .bind(end.status.name())
                     .bind(end.message)
@@ -967,6 +1050,34 @@ macro_rules! sql_store {
                     .await
                     .map_err(backend)?;
                 Ok(ended.rows_affected() == 1)
+            }
+
+            async fn finish_sweep_runs(
+                &self,
+                sweep: &$crate::jobs::JobId,
+                owner: &str,
+                ends: Vec<$crate::jobs::RunEnd>,
+            ) -> Result<usize, $crate::jobs::StoreError> {
+                use $crate::jobs::store::sql::{RUN_ENDS_AT_ONCE, backend, pack_run_result};
+                let mut tx = self.pool.begin().await.map_err(backend)?;
+                let mut recorded = 0;
+                for chunk in ends.chunks(RUN_ENDS_AT_ONCE) {
+                    let mut statement = sqlx::query(&self.sql.finish_sweep_runs[chunk.len() - 1])
+                        .bind(sweep.as_str())
+                        .bind(owner);
+                    for end in chunk {
+                        let result = end.result.as_deref().map(pack_run_result).transpose()?;
+                        statement = statement
+                            .bind(i64::from(end.index))
+                            .bind(end.status.name())
+                            .bind(end.message.clone())
+                            .bind(result);
+                    }
+                    let ended = statement.execute(&mut *tx).await.map_err(backend)?;
+                    recorded += usize::try_from(ended.rows_affected()).unwrap_or(0);
+                }
+                tx.commit().await.map_err(backend)?;
+                Ok(recorded)
             }
 
             async fn release_sweep_runs(
@@ -1025,3 +1136,30 @@ macro_rules! sql_store {
 }
 
 pub(super) use sql_store;
+
+#[cfg(test)]
+mod tests {
+    use super::{RAW_RUN_RESULT, compress, pack_run_result, unpack_run_result};
+
+    #[test]
+    fn a_small_run_result_is_stored_as_it_is_and_a_large_one_deflated() {
+        let small = br#"{"stats":{"steps":3},"last":{"positions":[0.0,1.5,-2.0]}}"#.to_vec();
+        assert_eq!(pack_run_result(&small).unwrap(), small);
+        assert_eq!(unpack_run_result(&small).unwrap().as_ref(), &small[..]);
+
+        let large = format!("{{\"last\":{{\"positions\":[{}0]}}}}", "0.25,".repeat(RAW_RUN_RESULT / 4));
+        let packed = pack_run_result(large.as_bytes()).unwrap();
+        assert!(packed.len() < large.len() / 10, "{} bytes of {}", packed.len(), large.len());
+        assert_ne!(packed.first(), Some(&b'{'));
+        assert_eq!(unpack_run_result(&packed).unwrap().as_ref(), large.as_bytes());
+    }
+
+    #[test]
+    fn a_run_result_deflated_when_every_one_was_is_still_read() {
+        for document in [&br#"{"a":1}"#[..], br#"{"stats":{"steps":3},"last":{"positions":[0.0,1.5]}}"#] {
+            let stored = compress(document).unwrap();
+            assert_ne!(stored.first(), Some(&b'{'));
+            assert_eq!(unpack_run_result(&stored).unwrap().as_ref(), document);
+        }
+    }
+}

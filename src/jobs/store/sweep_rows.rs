@@ -8,6 +8,7 @@
 use bytes::Bytes;
 
 use crate::jobs::id::JobId;
+use crate::jobs::record::Idempotency;
 use crate::jobs::status::JobStatus;
 
 /// A sweep as stored, without its document.
@@ -21,6 +22,17 @@ pub struct SweepEntry {
     pub runs: u32,
     /// Whether run 0 is the reference.
     pub has_reference: bool,
+    /// The client's `Idempotency-Key`, with the fingerprint of the document first sent with it.
+    pub idempotency: Option<Idempotency>,
+}
+
+/// What [`JobStore::insert_sweep`](super::JobStore::insert_sweep) did.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum InsertedSweep {
+    /// The sweep was added.
+    New,
+    /// Another sweep already holds the sweep's idempotency key; nothing was added.
+    KeyTaken(Box<SweepSummary>),
 }
 
 /// A sweep and how far its runs have got.
