@@ -76,7 +76,10 @@ impl Follow {
             if summary.is_complete() {
                 self.ended = true;
                 return match self.state.jobs.sweep_state(summary).await {
-                    Ok(sweep) => Some(Event::default().event("end").data(sweep_view(&sweep).to_string())),
+                    Ok(sweep) => match serde_json::to_string(&sweep_view(&sweep)) {
+                        Ok(view) => Some(Event::default().event("end").data(view)),
+                        Err(_) => Some(self.error()),
+                    },
                     Err(_) => Some(self.error()),
                 };
             }

@@ -56,7 +56,7 @@ pub fn sweep(
     let printed = if options.csv {
         write_csv(&table, &mut out)
     } else {
-        serde_json::to_writer_pretty(&mut out, &table.to_json())
+        serde_json::to_writer_pretty(&mut out, &table)
             .map_err(std::io::Error::other)
             .and_then(|_| writeln!(out))
     };
