@@ -34,6 +34,7 @@ use super::status::JobStatus;
 use super::store::{ClaimedRun, ClaimedRuns, RunEnd, StoreError, attempts_exhausted};
 use super::sweep_live::Batch;
 use crate::run::{Status, execute};
+use crate::solver::parallel;
 use crate::sweep::Sweep;
 
 /// Runs a worker claims at once.
@@ -51,48 +52,53 @@ pub(super) fn run_sweep_batch(shared: &Shared, size: u32) -> Result<Option<u32>,
     let lease = shared.lease();
     let claimed = shared.runtime.block_on(shared.store.claim_sweep_runs(&lease, now_ms(), size))?;
     let Some(ClaimedRuns { sweep: id, runs }) = claimed else { return Ok(None) };
-    let mut released = false;
     let batch = Arc::new(Batch::new(id.clone()));
     shared.batches().push(Arc::clone(&batch));
     tracing::debug!(sweep = %id, runs = runs.len(), "sweep runs claimed");
     let sweep = shared.sweep_blocking(&id);
-    let began = Instant::now();
     let mut ends = Ends { pending: Vec::new(), stored: Instant::now() };
-    for (done, run) in runs.iter().enumerate() {
-        let out_of_turn = done > 0 && began.elapsed() > BATCH_TIME;
-        if out_of_turn
-            || shared.stopped.load(Ordering::Relaxed)
-            || batch.shutting_down.load(Ordering::Relaxed)
-        {
-            release(shared, &batch, &runs[done..]);
-            released = true;
-            break;
-        }
-        let end = match &sweep {
-            _ if run.cancel_requested || batch.cancelled.load(Ordering::Relaxed) => {
-                ended(run.index, JobStatus::Cancelled, Some(CANCELLED.into()), None)
+    // The batch runs on a thread of the solver's pool, where each run's entry into the pool
+    // hands nothing to another thread: two thread switches a run, which cost a tiny run as much
+    // as some of its steps, are saved.
+    let (released, ran) = parallel::install(|| {
+        let began = Instant::now();
+        let mut released = false;
+        for (done, run) in runs.iter().enumerate() {
+            let out_of_turn = done > 0 && began.elapsed() > BATCH_TIME;
+            if out_of_turn
+                || shared.stopped.load(Ordering::Relaxed)
+                || batch.shutting_down.load(Ordering::Relaxed)
+            {
+                release(shared, &batch, &runs[done..]);
+                released = true;
+                break;
             }
-            _ if run.attempts > shared.config.max_attempts => ended(
-                run.index,
-                JobStatus::Failed,
-                Some(attempts_exhausted(shared.config.max_attempts)),
-                None,
-            ),
-            Ok(Some(sweep)) => run_one(shared, &batch, sweep, run.index),
-            Ok(None) => ended(run.index, JobStatus::Failed, Some(format!("sweep {id} is gone")), None),
-            Err(e) => ended(run.index, JobStatus::Failed, Some(e.to_string()), None),
-        };
-        let finished = matches!(end.status, JobStatus::Succeeded | JobStatus::Diverged);
-        if batch.shutting_down.load(Ordering::Relaxed) && !finished {
-            release(shared, &batch, &runs[done..]);
-            break;
+            let end = match &sweep {
+                _ if run.cancel_requested || batch.cancelled.load(Ordering::Relaxed) => {
+                    ended(run.index, JobStatus::Cancelled, Some(CANCELLED.into()), None)
+                }
+                _ if run.attempts > shared.config.max_attempts => ended(
+                    run.index,
+                    JobStatus::Failed,
+                    Some(attempts_exhausted(shared.config.max_attempts)),
+                    None,
+                ),
+                Ok(Some(sweep)) => run_one(shared, &batch, sweep, run.index),
+                Ok(None) => ended(run.index, JobStatus::Failed, Some(format!("sweep {id} is gone")), None),
+                Err(e) => ended(run.index, JobStatus::Failed, Some(e.to_string()), None),
+            };
+            let finished = matches!(end.status, JobStatus::Succeeded | JobStatus::Diverged);
+            if batch.shutting_down.load(Ordering::Relaxed) && !finished {
+                release(shared, &batch, &runs[done..]);
+                break;
+            }
+            ends.pending.push(end);
+            if ends.stored.elapsed() >= STORE_EVERY {
+                ends.store(shared, &id);
+            }
         }
-        ends.pending.push(end);
-        if ends.stored.elapsed() >= STORE_EVERY {
-            ends.store(shared, &id);
-        }
-    }
-    let ran = began.elapsed();
+        (released, began.elapsed())
+    });
     ends.store(shared, &id);
     let next_size = if released { 1 } else { next_batch_size(runs.len(), ran) };
     shared.batches().retain(|b| !Arc::ptr_eq(b, &batch));
