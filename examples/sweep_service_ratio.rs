@@ -31,7 +31,7 @@ use std::time::Instant;
 use serde_json::{Value, json};
 
 use serve::Server;
-use support::{drape_binary, median, min};
+use support::{drape_binary, median, min, post_sweep};
 
 /// Values of `dt`; each runs with both integrators.
 const STEPS: usize = 500;
@@ -113,16 +113,7 @@ async fn through_service(
     body: &[u8],
 ) -> Result<f64, Box<dyn Error>> {
     let start = Instant::now();
-    let response = client
-        .post(format!("{}/sweeps", server.base))
-        .header("content-type", "application/json")
-        .body(body.to_vec())
-        .send()
-        .await?;
-    if response.status() != 202 {
-        return Err(format!("POST /sweeps answered {}: {}", response.status(), response.text().await?).into());
-    }
-    let id = response.json::<Value>().await?["id"].as_str().ok_or("no sweep id")?.to_string();
+    let id = post_sweep(client, &server.base, body).await?;
     let mut events = client.get(format!("{}/sweeps/{id}/events", server.base)).send().await?;
     let mut text = String::new();
     let ended = |text: &str| text.split_once("event: end").is_some_and(|(_, rest)| rest.contains("\n\n"));

@@ -30,7 +30,7 @@ use std::time::{Duration, Instant};
 use serde_json::{Value, json};
 
 use serve::Server;
-use support::{cpu_seconds, drape_binary, machine_seconds, median, min, peers_cloth};
+use support::{cpu_seconds, drape_binary, machine_seconds, median, min, peers_cloth, post_sweep};
 
 const VARIANTS: usize = 64;
 const POLL: Duration = Duration::from_millis(50);
@@ -117,16 +117,7 @@ async fn run_sweep(
     let machine_before = machine_seconds()?;
     let cpu_before = cpu_seconds(server.pid())?;
     let start = Instant::now();
-    let response = client
-        .post(format!("{}/sweeps", server.base))
-        .header("content-type", "application/json")
-        .body(body.to_vec())
-        .send()
-        .await?;
-    if response.status() != 202 {
-        return Err(format!("POST /sweeps answered {}: {}", response.status(), response.text().await?).into());
-    }
-    let id = response.json::<Value>().await?["id"].as_str().ok_or("no sweep id")?.to_string();
+    let id = post_sweep(client, &server.base, body).await?;
     let (table, final_get_s) = loop {
         let asked = Instant::now();
         let table: Value = client.get(format!("{}/sweeps/{id}", server.base)).send().await?.json().await?;

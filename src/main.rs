@@ -340,7 +340,7 @@ fn run_sweep(path: &Path, options: SweepOptions<'_>, limits: &LimitArgs) -> Exit
     let printed = if csv {
         write_csv(&table, &mut out)
     } else {
-        serde_json::to_writer_pretty(&mut out, &table.to_json())
+        serde_json::to_writer_pretty(&mut out, &table)
             .map_err(std::io::Error::other)
             .and_then(|_| writeln!(out))
     };

@@ -1,8 +1,12 @@
 //! `drape run` from the shell: results on stdout, a diverged run is still a result (and exits
 //! 1), and a bad scene exits non-zero naming its fields.
 
+mod terminal;
+
 use std::io::Write;
 use std::process::{Command, Output, Stdio};
+
+use terminal::drape_in_terminal;
 
 fn drape_run(scene: &str) -> Output {
     drape(&["run", "-"], scene)
@@ -178,21 +182,6 @@ fn a_run_that_meets_more_self_collision_pairs_than_it_may_hold_exits_1_with_the_
     assert_eq!(out.status.code(), Some(1), "{stderr}");
     assert!(stderr.contains("failed: self-collision met") && stderr.contains("candidate pairs"), "{stderr}");
     assert!(out.stdout.is_empty());
-}
-
-/// `drape` with `args` in a pseudo-terminal (util-linux `script`), as a person at a terminal runs
-/// it: what the terminal received.
-fn drape_in_terminal(args: &str) -> String {
-    let command = format!("{} {args}", env!("CARGO_BIN_EXE_drape"));
-    let out = Command::new("script")
-        .args(["-qec", &command, "/dev/null"])
-        .env_remove("DRAPE_MEMORY_BUDGET")
-        .env_remove("DRAPE_MAX_STEPS")
-        .stdin(Stdio::null())
-        .output()
-        .expect("util-linux `script` runs a command in a pseudo-terminal");
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stdout));
-    String::from_utf8_lossy(&out.stdout).into_owned()
 }
 
 #[test]

@@ -5,6 +5,7 @@
 
 mod deadline;
 mod serve;
+mod terminal;
 
 use std::io::Write;
 use std::path::Path;
@@ -12,6 +13,7 @@ use std::process::{Command, Output, Stdio};
 
 use serde_json::Value;
 use serve::Server;
+use terminal::drape_in_terminal;
 
 /// A 10 × 10 cloth pinned at two corners for 0.3 s, recording positions and velocities.
 const CLOTH: &str = r#"{"duration": 0.3, "dt": 0.0002,
@@ -46,7 +48,11 @@ fn drape_with(dir: &Path, args: &[&str], input: &str, env: &[(&str, &str)]) -> O
     }
     let mut child =
         command.stdin(Stdio::piped()).stdout(Stdio::piped()).stderr(Stdio::piped()).spawn().unwrap();
-    child.stdin.take().unwrap().write_all(input.as_bytes()).unwrap();
+    // A command refused before it reads its input (`drape submit` without a server) closes it.
+    match child.stdin.take().unwrap().write_all(input.as_bytes()) {
+        Err(e) if e.kind() != std::io::ErrorKind::BrokenPipe => panic!("cannot write to drape: {e}"),
+        _ => {}
+    }
     child.wait_with_output().unwrap()
 }
 
@@ -298,4 +304,45 @@ fn a_sweep_on_a_server_prints_the_local_table_and_keeps_the_gate() {
         SWEEP.replace(r#""reference": {"integrator": "rk4", "dt": 1e-5}"#, r#""reference": null"#);
     let out = drape(dir.path(), &["sweep", "-", "--server", &server.base, "--min-order", "1"], &no_reference);
     assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+}
+
+/// The requests `GET /sweeps/{id}...` the server logged, each as what follows `/sweeps/`.
+fn sweep_reads(server: &Server) -> Vec<String> {
+    // Its log is in order: once this request's line is read, every earlier one is.
+    ureq::get(format!("{}/sweeps?limit=1", server.base)).call().unwrap();
+    let log = server.wait_for_log("uri=/sweeps?limit=1");
+    let finished = log.iter().filter(|line| line.contains("finished processing request"));
+    finished
+        .filter_map(|line| line.split_once("method=GET uri=/sweeps/"))
+        .map(|(_, rest)| rest.split_whitespace().next().unwrap_or_default().to_string())
+        .collect()
+}
+
+#[test]
+fn a_sweep_on_a_server_is_followed_through_its_events_with_progress_on_a_terminal() {
+    let dir = tempfile::tempdir().unwrap();
+    let server = Server::start(dir.path(), "memory", &[]);
+    // Three runs of up to 20,000 steps: long enough that the bar is drawn before the end.
+    let chain = r#"{"duration": 2, "dt": 0.0001, "bodies": [{"type": "chain", "count": 50}], "output": {"frames": "final"}}"#;
+    let sweep = dir.path().join("sweep.json");
+    std::fs::write(&sweep, format!(r#"{{"scene": {chain}, "vary": {{"/dt": [0.0001, 0.0002, 0.0004]}}}}"#))
+        .unwrap();
+    let args = format!("sweep {} --csv --server {}", sweep.display(), server.base);
+    let shown = drape_in_terminal(&args);
+    assert!(shown.contains("/3 runs") && shown.contains(" left"), "{shown:?}");
+    let rows = |shown: &str| shown.lines().filter(|l| l.contains(",succeeded,symplectic_euler,")).count();
+    assert_eq!(rows(&shown), 3, "{shown:?}");
+    // Quiet, or not a terminal: the table alone.
+    let quiet = drape_in_terminal(&format!("{args} --quiet --idempotency-key quiet"));
+    assert!(!quiet.contains("runs"), "{quiet:?}");
+    assert_eq!(rows(&quiet), 3, "{quiet:?}");
+    let piped = drape(dir.path(), &["sweep", "-", "--csv", "--server", &server.base], SWEEP);
+    assert_eq!(piped.status.code(), Some(0), "{}", stderr(&piped));
+    assert_eq!(stderr(&piped), "");
+
+    // Each sweep was followed through one event stream, which carried its table: no sweep was
+    // looked at otherwise.
+    let reads = sweep_reads(&server);
+    assert_eq!(reads.len(), 3, "{reads:?}");
+    assert!(reads.iter().all(|target| target.ends_with("/events")), "{reads:?}");
 }

@@ -1,9 +1,10 @@
 //! What the service measurements share besides the launcher: the `drape` binary they run, the
-//! peers' hanging cloth as a scene, medians and CPU times. The `drape serve` child they measure
+//! peers' hanging cloth as a scene, the submission of a sweep, medians and CPU times. The `drape serve` child they measure
 //! is started by the tests' launcher, `tests/serve/mod.rs`, which they include as well.
 
 #![allow(dead_code)]
 
+use std::error::Error;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -57,6 +58,21 @@ pub fn peers_cloth(n: u32, dt: f64, duration: f64) -> Value {
         }],
         "output": {"frames": "final", "fields": ["positions"]}
     })
+}
+
+/// `POST /sweeps` of the sweep `body` to the server at `base`: the id of the sweep it queued, or
+/// an error with what it answered instead of `202`.
+pub async fn post_sweep(client: &reqwest::Client, base: &str, body: &[u8]) -> Result<String, Box<dyn Error>> {
+    let response = client
+        .post(format!("{base}/sweeps"))
+        .header("content-type", "application/json")
+        .body(body.to_vec())
+        .send()
+        .await?;
+    if response.status() != 202 {
+        return Err(format!("POST /sweeps answered {}: {}", response.status(), response.text().await?).into());
+    }
+    Ok(response.json::<Value>().await?["id"].as_str().ok_or("no sweep id")?.to_string())
 }
 
 /// The median of some samples (the mean of the middle two for an even count).

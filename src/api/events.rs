@@ -1,7 +1,7 @@
 //! `GET /jobs/{id}/events`: server-sent events that follow a job to its end.
 //!
 //! The stream samples the job's progress (read lock-free from the run's `Control`) at most
-//! [`SAMPLES_PER_SECOND`] times a second and sends a `progress` event (`step`, `steps`, `t`,
+//! [`SAMPLES_PER_SECOND`](super::sse::SAMPLES_PER_SECOND) times a second and sends a `progress` event (`step`, `steps`, `t`,
 //! `fraction`) when it has moved, then one `end` event carrying the job as `GET /jobs/{id}` shows
 //! it, and closes. A status change of a job running here wakes the stream at once, so the end is
 //! not delayed; a job queued or running on another instance is followed through the store at the
@@ -9,24 +9,20 @@
 //! an `error` event: the job stays in the store for another instance.
 
 use std::convert::Infallible;
-use std::time::Duration;
 
 use axum::extract::State;
-use axum::response::sse::{Event, KeepAlive, Sse};
+use axum::response::sse::{Event, Sse};
 use futures_util::Stream;
-use futures_util::stream;
 use serde_json::json;
 use tokio::sync::watch;
-use tokio::time::{Instant, MissedTickBehavior, interval_at};
+use tokio::time::Interval;
 
 use super::AppState;
 use super::extract::JobPath;
 use super::problem::AppError;
+use super::sse::{Follow, sampled};
 use super::views::{job_view, progress};
 use crate::jobs::{JobId, JobStatus, Jobs};
-
-/// The most `progress` events a second.
-pub const SAMPLES_PER_SECOND: u32 = 4;
 
 /// Opens the event stream of a job.
 pub async fn events(
@@ -36,7 +32,7 @@ pub async fn events(
     if state.jobs.get(&id).await?.is_none() {
         return Err(AppError::JobNotFound { id: id.to_string() });
     }
-    let follow = Follow {
+    let follow = FollowJob {
         status: state.jobs.watch(&id),
         jobs: state.jobs,
         id,
@@ -44,17 +40,10 @@ pub async fn events(
         sample_due: true,
         ended: false,
     };
-    let period = Duration::from_secs(1) / SAMPLES_PER_SECOND;
-    let mut ticks = interval_at(Instant::now() + period, period);
-    ticks.set_missed_tick_behavior(MissedTickBehavior::Delay);
-    let stream = stream::unfold((follow, ticks), |(mut follow, mut ticks)| async move {
-        let event = follow.next(&mut ticks).await?;
-        Some((Ok(event), (follow, ticks)))
-    });
-    Ok(Sse::new(stream).keep_alive(KeepAlive::default()))
+    Ok(sampled(follow))
 }
 
-struct Follow {
+struct FollowJob {
     jobs: Jobs,
     id: JobId,
     status: Option<watch::Receiver<JobStatus>>,
@@ -64,9 +53,8 @@ struct Follow {
     ended: bool,
 }
 
-impl Follow {
-    /// The next event, or `None` once the end has been sent.
-    async fn next(&mut self, ticks: &mut tokio::time::Interval) -> Option<Event> {
+impl Follow for FollowJob {
+    async fn next(&mut self, ticks: &mut Interval) -> Option<Event> {
         loop {
             if self.ended {
                 return None;
@@ -103,9 +91,11 @@ impl Follow {
             self.wait(ticks).await;
         }
     }
+}
 
+impl FollowJob {
     /// Waits for the next sample time or a status change, whichever comes first.
-    async fn wait(&mut self, ticks: &mut tokio::time::Interval) {
+    async fn wait(&mut self, ticks: &mut Interval) {
         match &mut self.status {
             Some(status) => {
                 tokio::select! {

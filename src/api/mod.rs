@@ -16,6 +16,7 @@ mod metrics;
 mod openapi;
 mod problem;
 mod simulate;
+mod sse;
 mod sweep_events;
 mod sweeps;
 mod viewer;

@@ -1,26 +1,25 @@
 //! `GET /sweeps/{id}/events`: server-sent events that follow a sweep to its end.
 //!
-//! The stream reads the sweep's progress from the store [`SAMPLES_PER_SECOND`] times a second
+//! The stream reads the sweep's progress from the store
+//! [`SAMPLES_PER_SECOND`](super::sse::SAMPLES_PER_SECOND) times a second
 //! (its runs may run on any instance sharing the store) and sends a `progress` event (the sweep
 //! as `GET /sweeps` lists it: `progress.finished`, `progress.running`, `progress.runs`) when it
 //! has moved, then one `end` event carrying the sweep with its table as `GET /sweeps/{id}` shows
 //! it, and closes. A batch of runs ending on this instance makes it look again at once, so the
 //! `end` of a sweep run here is sent as soon as it is stored; progress is still sent at most
-//! [`SAMPLES_PER_SECOND`] times a second.
+//! [`SAMPLES_PER_SECOND`](super::sse::SAMPLES_PER_SECOND) times a second.
 
 use std::convert::Infallible;
-use std::time::Duration;
 
 use axum::extract::State;
-use axum::response::sse::{Event, KeepAlive, Sse};
+use axum::response::sse::{Event, Sse};
 use futures_util::Stream;
-use futures_util::stream;
-use tokio::time::{Instant, MissedTickBehavior, interval_at};
+use tokio::time::Interval;
 
 use super::AppState;
-use super::events::SAMPLES_PER_SECOND;
 use super::extract::SweepPath;
 use super::problem::AppError;
+use super::sse::{Follow, sampled};
 use super::sweeps::{summary_view, sweep_view};
 use crate::jobs::JobId;
 
@@ -32,19 +31,11 @@ pub async fn events(
     if state.jobs.sweep(&id).await?.is_none() {
         return Err(AppError::SweepNotFound { id: id.to_string() });
     }
-    let period = Duration::from_secs(1) / SAMPLES_PER_SECOND;
-    let mut ticks = interval_at(Instant::now() + period, period);
-    ticks.set_missed_tick_behavior(MissedTickBehavior::Delay);
     let changes = state.jobs.sweep_changes();
-    let follow = Follow { state, id, changes, last: None, sample_due: true, ended: false };
-    let stream = stream::unfold((follow, ticks), |(mut follow, mut ticks)| async move {
-        let event = follow.next(&mut ticks).await?;
-        Some((Ok(event), (follow, ticks)))
-    });
-    Ok(Sse::new(stream).keep_alive(KeepAlive::default()))
+    Ok(sampled(FollowSweep { state, id, changes, last: None, sample_due: true, ended: false }))
 }
 
-struct Follow {
+struct FollowSweep {
     state: AppState,
     id: JobId,
     /// Changes when runs end on this instance.
@@ -56,9 +47,8 @@ struct Follow {
     ended: bool,
 }
 
-impl Follow {
-    /// The next event, or `None` once the end has been sent.
-    async fn next(&mut self, ticks: &mut tokio::time::Interval) -> Option<Event> {
+impl Follow for FollowSweep {
+    async fn next(&mut self, ticks: &mut Interval) -> Option<Event> {
         loop {
             if self.ended {
                 return None;
@@ -76,7 +66,10 @@ impl Follow {
             if summary.is_complete() {
                 self.ended = true;
                 return match self.state.jobs.sweep_state(summary).await {
-                    Ok(sweep) => Some(Event::default().event("end").data(sweep_view(&sweep).to_string())),
+                    Ok(sweep) => match serde_json::to_string(&sweep_view(&sweep)) {
+                        Ok(view) => Some(Event::default().event("end").data(view)),
+                        Err(_) => Some(self.error()),
+                    },
                     Err(_) => Some(self.error()),
                 };
             }
@@ -92,7 +85,9 @@ impl Follow {
             self.sample_due = false;
         }
     }
+}
 
+impl FollowSweep {
     fn error(&mut self) -> Event {
         self.ended = true;
         Event::default().event("error").data(r#"{"detail":"the sweep can no longer be read"}"#)

@@ -5,6 +5,7 @@ use axum::Json;
 use axum::extract::{RawQuery, State};
 use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Response};
+use serde::Serialize;
 use serde_json::{Value, json};
 
 use super::AppState;
@@ -12,7 +13,7 @@ use super::extract::{IdempotencyKey, JsonBody, PageQuery, SweepPath};
 use super::problem::AppError;
 use super::views::rfc3339;
 use crate::assets::has_references;
-use crate::jobs::{Idempotency, JobId, Page, SweepState, SweepSummary, fingerprint};
+use crate::jobs::{Idempotency, JobId, Page, SweepState, SweepSummary, SweepTable, fingerprint};
 use crate::scene::FieldError;
 
 /// `POST /sweeps`: puts the meshes its base scene names by `"asset"` in place, checks the sweep
@@ -97,15 +98,22 @@ pub(super) async fn state_of(state: &AppState, id: &JobId) -> Result<SweepState,
 }
 
 /// A sweep as the API shows it: the table, with what [`summary_view`] shows.
-pub(super) fn sweep_view(sweep: &SweepState) -> Value {
-    let mut view = sweep.table.to_json();
-    let Value::Object(summary) = summary_view(&sweep.summary) else { unreachable!("a summary is an object") };
-    view.as_object_mut().expect("a table is an object").extend(summary);
-    view["variants"] = sweep.variants.into();
+pub(super) fn sweep_view(sweep: &SweepState) -> SweepView<'_> {
+    let mut summary = summary_view(&sweep.summary);
+    summary["variants"] = sweep.variants.into();
     // The rows were read after the summary's counts: what they say is the more recent.
-    view["complete"] = sweep.table.is_complete().into();
-    view["progress"]["finished"] = sweep.finished.into();
-    view
+    summary["complete"] = sweep.table.is_complete().into();
+    summary["progress"]["finished"] = sweep.finished.into();
+    SweepView { table: &sweep.table, summary }
+}
+
+/// A sweep's table followed by its summary, in one JSON object written straight from the table.
+#[derive(Serialize)]
+pub(super) struct SweepView<'a> {
+    #[serde(flatten)]
+    table: &'a SweepTable,
+    #[serde(flatten)]
+    summary: Value,
 }
 
 /// A sweep without its table: id, progress, and links.

@@ -1,8 +1,37 @@
-//! Server-sent events (the `text/event-stream` of `GET /jobs/{id}/events`), read one event at a
-//! time from a byte stream as the HTML standard defines them: `event:` and `data:` lines,
-//! comments (`:`) skipped, a blank line ending each event.
+//! Server-sent events (the `text/event-stream` of `GET /jobs/{id}/events` and
+//! `GET /sweeps/{id}/events`), read one event at a time from a byte stream as the HTML standard
+//! defines them: `event:` and `data:` lines, comments (`:`) skipped, a blank line ending each
+//! event; and [`follow`], which reads such a stream from the server to its `end` event.
 
 use std::io::{self, BufRead, BufReader, Read};
+
+use serde_json::Value;
+
+use super::Server;
+
+/// Follows the events at `target` on `server`: the data of each `progress` event goes to
+/// `progress`, and the data of the `end` event is returned if `ended` accepts it. `None` if the
+/// stream cannot be opened, or stops (an `error` event, an `end` that `ended` does not accept, a
+/// stream cut short) before: the caller then looks for the end itself.
+pub fn follow(
+    server: &Server,
+    target: &str,
+    progress: impl Fn(&Value),
+    ended: impl Fn(&Value) -> bool,
+) -> Option<Value> {
+    let stream = server.get(target, "text/event-stream").ok()?;
+    for event in Events::new(stream.into_body().into_reader()) {
+        let event = event.ok()?;
+        let Ok(data) = serde_json::from_str::<Value>(&event.data) else { continue };
+        match event.name.as_str() {
+            "progress" => progress(&data),
+            "end" if ended(&data) => return Some(data),
+            "end" | "error" => return None,
+            _ => {}
+        }
+    }
+    None
+}
 
 /// One event: its name (`message` when none is given) and its data lines, joined by `\n`.
 #[derive(Clone, Debug, PartialEq, Eq)]

@@ -8,7 +8,7 @@ use std::time::Duration;
 
 use serde_json::Value;
 
-use super::events::Events;
+use super::events;
 use super::http::{ClientError, read_json, unreachable};
 use super::{Exit, Server, idempotency_key};
 use crate::output::{Format, carried};
@@ -130,17 +130,8 @@ fn follow(server: &Server, id: &str, steps: u64, show: bool) -> Result<Value, Cl
     };
     let read = || (step.load(Ordering::Relaxed), f64::from_bits(t.load(Ordering::Relaxed)));
     progress::follow_steps(show, steps, read, || {
-        if let Ok(stream) = server.get(&format!("/jobs/{id}/events"), "text/event-stream") {
-            for event in Events::new(stream.into_body().into_reader()) {
-                let Ok(event) = event else { break };
-                let Ok(data) = serde_json::from_str::<Value>(&event.data) else { continue };
-                match event.name.as_str() {
-                    "progress" => publish(&data),
-                    "end" if ended(&data) => return Ok(data),
-                    "end" | "error" => break,
-                    _ => {}
-                }
-            }
+        if let Some(job) = events::follow(server, &format!("/jobs/{id}/events"), publish, ended) {
+            return Ok(job);
         }
         loop {
             let job = server.get_json(&format!("/jobs/{id}"))?;

@@ -1,5 +1,8 @@
-//! A sweep sent to a server: `drape sweep --server` queues it, follows its progress by looking
-//! at it (`GET /sweeps/{id}`), and prints, plots and gates its table as `drape sweep` does.
+//! A sweep sent to a server: `drape sweep --server` queues it, follows it through its events
+//! (`GET /sweeps/{id}/events`: `progress` events, then the `end` event that carries the table),
+//! and prints, plots and gates its table as `drape sweep` does. If the stream ends before its
+//! `end` (a proxy that cuts it, a server that shuts down), the sweep is looked at
+//! (`GET /sweeps/{id}`) until it is complete.
 
 use std::io::Write;
 use std::path::Path;
@@ -8,12 +11,13 @@ use std::time::Duration;
 
 use serde_json::Value;
 
+use super::events;
 use super::http::{ClientError, read_json};
 use super::{Exit, Server, idempotency_key};
 use crate::progress;
 use crate::sweep::{Table, Thresholds, write_csv, write_svg};
 
-/// How often a sweep is looked at.
+/// How often a sweep is looked at when its events cannot be followed.
 const POLL: Duration = Duration::from_millis(250);
 
 /// What `drape sweep --server` prints, and the thresholds its table must keep.
@@ -56,7 +60,7 @@ pub fn sweep(
     let printed = if options.csv {
         write_csv(&table, &mut out)
     } else {
-        serde_json::to_writer_pretty(&mut out, &table.to_json())
+        serde_json::to_writer_pretty(&mut out, &table)
             .map_err(std::io::Error::other)
             .and_then(|_| writeln!(out))
     };
@@ -86,17 +90,37 @@ fn queue_and_wait(
 ) -> Result<Table, ClientError> {
     let key = idempotency_key("POST /sweeps", &document, salt);
     let sweep = read_json(&server.url("/sweeps"), server.post("/sweeps", &document, &key)?)?;
-    let target = format!("/sweeps/{}", sweep["id"].as_str().unwrap_or_default());
+    let id = sweep["id"].as_str().unwrap_or_default().to_string();
     let runs = sweep["progress"]["runs"].as_u64().unwrap_or(0) as usize;
     let finished = AtomicUsize::new(0);
-    let view = progress::follow_sweep(show, &finished, runs, || {
-        let mut view = sweep;
-        while view["complete"] != true {
-            std::thread::sleep(POLL);
-            view = server.get_json(&target)?;
-            finished.store(view["progress"]["finished"].as_u64().unwrap_or(0) as usize, Ordering::Relaxed);
-        }
-        Ok(view)
-    })?;
+    let view = progress::follow_sweep(show, &finished, runs, || follow(server, &id, sweep, &finished))?;
+    let target = format!("/sweeps/{id}");
     Table::from_json(&view).map_err(|reason| ClientError::Unexpected { url: server.url(&target), reason })
+}
+
+/// Follows sweep `id`, as `queued` shows it, to its end, counting its ended runs in `finished`:
+/// from its events while the server sends them, else by looking at it every [`POLL`]. The sweep
+/// with its complete table.
+fn follow(server: &Server, id: &str, queued: Value, finished: &AtomicUsize) -> Result<Value, ClientError> {
+    let publish = |sweep: &Value| {
+        finished.store(sweep["progress"]["finished"].as_u64().unwrap_or(0) as usize, Ordering::Relaxed);
+    };
+    let complete = |sweep: &Value| sweep["complete"] == true;
+    publish(&queued);
+    // A repeated request may find the sweep already complete.
+    if complete(&queued) {
+        return Ok(queued);
+    }
+    if let Some(sweep) = events::follow(server, &format!("/sweeps/{id}/events"), publish, complete) {
+        return Ok(sweep);
+    }
+    let target = format!("/sweeps/{id}");
+    loop {
+        let sweep = server.get_json(&target)?;
+        publish(&sweep);
+        if complete(&sweep) {
+            return Ok(sweep);
+        }
+        std::thread::sleep(POLL);
+    }
 }

@@ -54,6 +54,7 @@ pub use store::{
     SqliteStore, StoreError, StoreUrl, StoredResult, StoredRun, SweepEntry, SweepSummary, attempts_exhausted,
 };
 pub use sweeps::{
-    SweepDocumentError, SweepState, SweepSubmitError, SweepSubmitted, admit_for_table, sweep_over_limit,
+    SweepDocumentError, SweepState, SweepSubmitError, SweepSubmitted, SweepTable, admit_for_table,
+    sweep_over_limit,
 };
 pub use untrusted::{Refusal, check_untrusted};

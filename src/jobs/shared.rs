@@ -176,7 +176,7 @@ pub(super) fn sweep_for_table(document: serde_json::Value, max_variants: u64) ->
 }
 
 /// A sweep run keeps only its final positions, as JSON, which is all its table row needs and
-/// what [`read_json`](crate::output::read_json) reads back.
+/// what [`read_json_final`](crate::output::read_json_final) reads back.
 pub(super) fn keep_final_positions(scene: &mut Scene) {
     scene.output.frames = FrameSelection::Final;
     scene.output.fields = vec![Field::Positions];

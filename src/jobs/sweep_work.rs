@@ -4,9 +4,11 @@
 //! The policy between sweeps and single jobs: a worker takes a queued job first, and only when
 //! none is queued a batch of runs of the oldest sweep with runs waiting. It starts no further run
 //! of the batch once [`BATCH_TIME`] has passed since the batch began, and puts the runs it did
-//! not start back in the queue. A worker's batches start at one run and double, up to
-//! [`BATCH_RUNS`], while each is done within [`BATCH_TIME`]: long runs are claimed one at a time,
-//! so the workers of every instance share them, and tiny ones many at a time. So a job queued while a sweep runs
+//! not start back in the queue. A worker's first batch is one run; each next batch holds as many
+//! runs as the last batch's time per run fits in [`BATCH_AIM`], up to [`BATCH_RUNS`], and one run
+//! again after a batch that outlasted [`BATCH_TIME`]: long runs are claimed one at a time, so the
+//! workers of every instance share them, and tiny ones many at a time, so that their claims and
+//! stores cost little beside them. So a job queued while a sweep runs
 //! waits for at most one run plus [`BATCH_TIME`] for a worker, while a sweep's runs cost one
 //! claim per batch rather than a job each. Sweeps are served oldest first; a steady stream of
 //! single jobs delays them, never the reverse.
@@ -32,12 +34,15 @@ use super::status::JobStatus;
 use super::store::{ClaimedRun, ClaimedRuns, RunEnd, StoreError, attempts_exhausted};
 use super::sweep_live::Batch;
 use crate::run::{Status, execute};
+use crate::solver::parallel;
 use crate::sweep::Sweep;
 
 /// Runs a worker claims at once.
-pub(super) const BATCH_RUNS: u32 = 64;
+pub(super) const BATCH_RUNS: u32 = 256;
 /// How long a worker keeps starting runs of one batch.
 pub(super) const BATCH_TIME: Duration = Duration::from_millis(200);
+/// How long a batch is sized to take, from the time per run of the batch before it.
+const BATCH_AIM: Duration = Duration::from_millis(50);
 /// How long the ends of runs may wait to be stored together.
 const STORE_EVERY: Duration = Duration::from_millis(20);
 
@@ -47,54 +52,69 @@ pub(super) fn run_sweep_batch(shared: &Shared, size: u32) -> Result<Option<u32>,
     let lease = shared.lease();
     let claimed = shared.runtime.block_on(shared.store.claim_sweep_runs(&lease, now_ms(), size))?;
     let Some(ClaimedRuns { sweep: id, runs }) = claimed else { return Ok(None) };
-    let mut next_size = size.saturating_mul(2).min(BATCH_RUNS);
     let batch = Arc::new(Batch::new(id.clone()));
     shared.batches().push(Arc::clone(&batch));
     tracing::debug!(sweep = %id, runs = runs.len(), "sweep runs claimed");
     let sweep = shared.sweep_blocking(&id);
-    let began = Instant::now();
     let mut ends = Ends { pending: Vec::new(), stored: Instant::now() };
-    for (done, run) in runs.iter().enumerate() {
-        let out_of_turn = done > 0 && began.elapsed() > BATCH_TIME;
-        if out_of_turn
-            || shared.stopped.load(Ordering::Relaxed)
-            || batch.shutting_down.load(Ordering::Relaxed)
-        {
-            release(shared, &batch, &runs[done..]);
-            next_size = 1;
-            break;
-        }
-        let end = match &sweep {
-            _ if run.cancel_requested || batch.cancelled.load(Ordering::Relaxed) => {
-                ended(run.index, JobStatus::Cancelled, Some(CANCELLED.into()), None)
+    // The batch runs on a thread of the solver's pool, where each run's entry into the pool
+    // hands nothing to another thread: two thread switches a run, which cost a tiny run as much
+    // as some of its steps, are saved.
+    let (released, ran) = parallel::install(|| {
+        let began = Instant::now();
+        let mut released = false;
+        for (done, run) in runs.iter().enumerate() {
+            let out_of_turn = done > 0 && began.elapsed() > BATCH_TIME;
+            if out_of_turn
+                || shared.stopped.load(Ordering::Relaxed)
+                || batch.shutting_down.load(Ordering::Relaxed)
+            {
+                release(shared, &batch, &runs[done..]);
+                released = true;
+                break;
             }
-            _ if run.attempts > shared.config.max_attempts => ended(
-                run.index,
-                JobStatus::Failed,
-                Some(attempts_exhausted(shared.config.max_attempts)),
-                None,
-            ),
-            Ok(Some(sweep)) => run_one(shared, &batch, sweep, run.index),
-            Ok(None) => ended(run.index, JobStatus::Failed, Some(format!("sweep {id} is gone")), None),
-            Err(e) => ended(run.index, JobStatus::Failed, Some(e.to_string()), None),
-        };
-        let finished = matches!(end.status, JobStatus::Succeeded | JobStatus::Diverged);
-        if batch.shutting_down.load(Ordering::Relaxed) && !finished {
-            release(shared, &batch, &runs[done..]);
-            break;
+            let end = match &sweep {
+                _ if run.cancel_requested || batch.cancelled.load(Ordering::Relaxed) => {
+                    ended(run.index, JobStatus::Cancelled, Some(CANCELLED.into()), None)
+                }
+                _ if run.attempts > shared.config.max_attempts => ended(
+                    run.index,
+                    JobStatus::Failed,
+                    Some(attempts_exhausted(shared.config.max_attempts)),
+                    None,
+                ),
+                Ok(Some(sweep)) => run_one(shared, &batch, sweep, run.index),
+                Ok(None) => ended(run.index, JobStatus::Failed, Some(format!("sweep {id} is gone")), None),
+                Err(e) => ended(run.index, JobStatus::Failed, Some(e.to_string()), None),
+            };
+            let finished = matches!(end.status, JobStatus::Succeeded | JobStatus::Diverged);
+            if batch.shutting_down.load(Ordering::Relaxed) && !finished {
+                release(shared, &batch, &runs[done..]);
+                break;
+            }
+            ends.pending.push(end);
+            if ends.stored.elapsed() >= STORE_EVERY {
+                ends.store(shared, &id);
+            }
         }
-        ends.pending.push(end);
-        if ends.stored.elapsed() >= STORE_EVERY {
-            ends.store(shared, &id);
-        }
-    }
+        (released, began.elapsed())
+    });
     ends.store(shared, &id);
-    if began.elapsed() > BATCH_TIME {
-        next_size = 1;
-    }
+    let next_size = if released { 1 } else { next_batch_size(runs.len(), ran) };
     shared.batches().retain(|b| !Arc::ptr_eq(b, &batch));
     shared.changed();
     Ok(Some(next_size))
+}
+
+/// The size of the batch after one of `runs` runs that took `took`: as many runs as fit in
+/// [`BATCH_AIM`] at its time per run, from 1 to [`BATCH_RUNS`]; 1 after a batch past [`BATCH_TIME`].
+fn next_batch_size(runs: usize, took: Duration) -> u32 {
+    if took > BATCH_TIME {
+        return 1;
+    }
+    let per_run = took.as_nanos() / runs.max(1) as u128;
+    let fit = BATCH_AIM.as_nanos() / per_run.max(1);
+    u32::try_from(fit).unwrap_or(BATCH_RUNS).clamp(1, BATCH_RUNS)
 }
 
 /// Ends of runs not yet stored, and when the last were.
@@ -185,5 +205,24 @@ fn run_one(shared: &Shared, batch: &Batch, sweep: &Sweep, index: u32) -> RunEnd 
         }
         Status::Cancelled => ended(index, JobStatus::Cancelled, Some(CANCELLED.into()), Some(bytes)),
         Status::Failed => ended(index, JobStatus::Failed, stats.failure.clone(), None),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::time::Duration;
+
+    use super::{BATCH_RUNS, next_batch_size};
+
+    #[test]
+    fn a_batch_is_sized_by_the_time_per_run_of_the_last() {
+        let ms = Duration::from_millis;
+        // Runs of 70 µs: as many as fit in 50 ms, up to the most a worker claims.
+        assert_eq!(next_batch_size(1, Duration::from_micros(70)), BATCH_RUNS);
+        assert_eq!(next_batch_size(4, ms(20)), 10);
+        assert_eq!(next_batch_size(5, ms(50)), 5);
+        // A run longer than the aim, or a batch past its time, is claimed alone.
+        assert_eq!(next_batch_size(1, ms(150)), 1);
+        assert_eq!(next_batch_size(256, ms(201)), 1);
     }
 }

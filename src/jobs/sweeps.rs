@@ -28,14 +28,17 @@ use super::service::{Jobs, SubmitError};
 use super::shared::{keep_final_positions, sweep_for_table};
 use super::status::JobStatus;
 use super::store::{InsertedSweep, Page, StoreError, StoredRun, SweepEntry, SweepSummary};
-use crate::output::read_json;
+use crate::output::read_json_final;
 use crate::scene::{FieldError, Scene};
-use crate::sweep::{Outcome, Sweep, SweepError, Table, write_csv, write_svg};
+use crate::sweep::{Finished, Outcome, Sweep, SweepError, Table, write_csv, write_svg};
 
 /// Why a sweep document is not a sweep that can run: not JSON, invalid pointers or values, or
 /// more variants than allowed. The sweep module's own error, under the name the job system gives
 /// it, so that the API need not reach past the job system for it.
 pub use crate::sweep::SweepError as SweepDocumentError;
+
+/// A sweep's table (its rows and observed orders), which serializes as the JSON the API shows.
+pub use crate::sweep::Table as SweepTable;
 
 /// The table of a sweep as it stands, and how many of its runs have ended.
 #[derive(Debug)]
@@ -236,8 +239,8 @@ fn assemble(summary: SweepSummary, sweep: &Sweep, runs: Vec<StoredRun>) -> Sweep
 /// A stored run as a table row's outcome.
 fn outcome(run: StoredRun) -> Outcome {
     match run.result {
-        Some(bytes) if run.status.is_final() => match read_json(&bytes) {
-            Ok(recording) => Outcome::Finished(Box::new(recording)),
+        Some(bytes) if run.status.is_final() => match read_json_final(&bytes) {
+            Ok((stats, final_positions)) => Outcome::Finished(Box::new(Finished { stats, final_positions })),
             Err(e) => Outcome::Pending {
                 status: JobStatus::Failed.name().into(),
                 detail: Some(format!("the run's result cannot be read: {e}")),
@@ -320,4 +323,42 @@ fn over_limit(sweep: &Sweep, vary_lists: &[(String, Vec<Value>)], limits: &Limit
 /// A JSON object key as a JSON Pointer token (RFC 6901).
 fn escape(key: &str) -> String {
     key.replace('~', "~0").replace('/', "~1")
+}
+
+#[cfg(test)]
+mod tests {
+    use serde_json::json;
+
+    use super::{Finished, Outcome, Table, outcome};
+    use crate::jobs::encode::encode_result;
+    use crate::jobs::shared::sweep_for_table;
+    use crate::jobs::status::JobStatus;
+    use crate::jobs::store::StoredRun;
+    use crate::run::{Control, execute};
+
+    #[test]
+    fn a_table_from_stored_results_is_the_table_of_the_runs() {
+        // The single spring, in both precisions, against an RK4 reference.
+        let scene = json!({"duration": 1.0, "gravity": [0, 0, 0], "error_estimate": "none",
+            "bodies": [{"type": "chain", "start": [0, 0, 0], "end": [1.1, 0, 0], "count": 2, "mass": 2.0,
+                        "spring": {"k": 100, "rest_length": 1.0}, "pin": [0]}]});
+        let document = json!({"scene": scene, "vary": {"/precision": ["f32", "f64"], "/dt": [0.01, 0.005]},
+                              "reference": {"integrator": "rk4", "dt": 1e-4}});
+        let sweep = sweep_for_table(document, 100).unwrap();
+        let scenes = sweep.reference.iter().chain(sweep.variants.iter().map(|v| &v.scene));
+        let (mut in_memory, mut stored) = (Vec::new(), Vec::new());
+        for scene in scenes {
+            let compiled = scene.compile();
+            let recording = execute(&compiled, &Control::new());
+            let bytes = encode_result(&recording, &compiled.output, &|| false).unwrap().bytes;
+            let run = StoredRun { status: JobStatus::Succeeded, message: None, result: Some(bytes) };
+            stored.push(outcome(run));
+            in_memory.push(Outcome::Finished(Box::new(Finished::from(recording))));
+        }
+        let local = Table::assemble(&sweep, in_memory.first(), &in_memory[1..]);
+        assert_eq!(Table::assemble(&sweep, stored.first(), &stored[1..]), local);
+        // Every row is compared with the reference, the f32 runs as the f32 values they computed.
+        assert!(local.rows.iter().all(|r| r.reference_error.is_some_and(|(max, _)| max > 0.0)), "{local:?}");
+        assert_eq!(local.convergence().len(), 2);
+    }
 }

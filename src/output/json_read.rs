@@ -239,6 +239,50 @@ pub fn read_json(bytes: &[u8]) -> Result<Recording, ReadError> {
     })
 }
 
+/// The part of a JSON result [`read_json_final`] reads; the rest is skipped unread.
+#[derive(Deserialize)]
+struct FinalIn {
+    mesh: ParticlesIn,
+    #[serde(default)]
+    frames: Option<serde::de::IgnoredAny>,
+    #[serde(default, rename = "final")]
+    last: Option<PositionsIn>,
+    stats: Value,
+}
+
+#[derive(Deserialize)]
+struct ParticlesIn {
+    particles: usize,
+}
+
+#[derive(Deserialize)]
+struct PositionsIn {
+    positions: Option<Vec<Number>>,
+}
+
+/// The statistics of a JSON result and its final positions widened to `f64` (`None` without a
+/// final frame of positions), as [`read_json`] would give them, without reading the rest: the
+/// mesh and other fields are skipped. A result of every frame is read whole.
+pub fn read_json_final(bytes: &[u8]) -> Result<(Stats, Option<Vec<f64>>), ReadError> {
+    let result: FinalIn = serde_json::from_slice(bytes)?;
+    if result.frames.is_some() && result.last.is_some() {
+        let recording = read_json(bytes)?;
+        let per_frame = 3 * recording.particles;
+        let samples = recording.frames.positions.as_ref().map(Samples::to_f64);
+        let last = samples.filter(|s| s.len() >= per_frame).map(|s| s[s.len() - per_frame..].to_vec());
+        return Ok((recording.stats, last));
+    }
+    let stats = read_stats(&result.stats)?;
+    let per_frame = 3 * result.mesh.particles;
+    let positions = result.last.and_then(|last| last.positions).map(|numbers| match stats.precision {
+        // Widened as a recording's `f32` samples are: the number written is the `f32`'s.
+        Precision::F32 => numbers.iter().map(|n| f64::from(n.0 as f32)).collect::<Vec<f64>>(),
+        Precision::F64 => numbers.iter().map(|n| n.0).collect(),
+    });
+    let last = positions.filter(|p| p.len() >= per_frame).map(|p| p[p.len() - per_frame..].to_vec());
+    Ok((stats, last))
+}
+
 /// Looks a name up among those drape writes.
 fn named<T: Copy>(field: &'static str, value: &Value, options: &[(&str, T)]) -> Result<T, ReadError> {
     let name = value.as_str().unwrap_or_default();

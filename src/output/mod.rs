@@ -23,7 +23,7 @@ use std::io::{self, BufWriter, Write};
 
 pub use format::{Carried, Format, FormatError, carried, check};
 pub use json::{stats_json, write_json};
-pub use json_read::{ReadError, read_json};
+pub use json_read::{ReadError, read_json, read_json_final};
 
 use crate::run::{Recording, Samples};
 use crate::scene::{Field, FieldError};

@@ -51,7 +51,7 @@ pub fn run_locally_with(
         }
     });
     let mut outcomes = results.into_iter().map(|m| match m.into_inner().unwrap_or_else(|e| e.into_inner()) {
-        Some(Ok(recording)) => Outcome::Finished(Box::new(recording)),
+        Some(Ok(recording)) => Outcome::Finished(Box::new(recording.into())),
         Some(Err(message)) => Outcome::Pending { status: "failed".into(), detail: Some(message) },
         None => Outcome::Pending { status: "failed".into(), detail: Some("the run did not report".into()) },
     });

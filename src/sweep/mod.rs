@@ -22,7 +22,7 @@ use thiserror::Error;
 pub use gate::Thresholds;
 pub use local::{run_locally, run_locally_with};
 pub use plot::write_svg;
-pub use table::{Convergence, Outcome, Row, Table, compile_for_table, final_positions, write_csv};
+pub use table::{Convergence, Finished, Outcome, Row, Table, compile_for_table, final_positions, write_csv};
 
 use crate::scene::{FieldError, Scene};
 

@@ -8,9 +8,11 @@
 
 use std::io::{self, Write};
 
-use serde_json::{Value, json};
+use serde::Serialize;
+use serde::ser::{SerializeMap, Serializer};
+use serde_json::Value;
 
-use crate::run::{EstimateOutcome, Recording, Status};
+use crate::run::{EstimateOutcome, Recording, Stats, Status};
 use crate::scene::{Compiled, Field, FrameSelection, Scene};
 use crate::solver::Energy;
 
@@ -52,9 +54,8 @@ pub struct Row {
 
 impl Row {
     /// The row of a finished run, compared with the reference's final positions if given.
-    pub fn from_recording(values: Vec<Value>, recording: &Recording, reference: Option<&[f64]>) -> Self {
-        let stats = &recording.stats;
-        let positions = recording.has_final.then(|| final_positions(recording)).flatten();
+    pub fn from_finished(values: Vec<Value>, finished: &Finished, reference: Option<&[f64]>) -> Self {
+        let stats = &finished.stats;
         let estimate = stats.error.as_ref().and_then(|e| match e.outcome {
             EstimateOutcome::Estimate { max, rms, .. } => Some((max, rms)),
             EstimateOutcome::Unavailable { .. } => None,
@@ -74,7 +75,7 @@ impl Row {
             steps: stats.steps,
             wall_time_s: stats.wall_time_s,
             estimate,
-            reference_error: positions.zip(reference).map(|(p, r)| distances(&p, r)),
+            reference_error: finished.final_positions.as_deref().zip(reference).map(|(p, r)| distances(p, r)),
             max_strain: stats.max_strain,
             energy: stats.energy,
         }
@@ -133,11 +134,28 @@ fn distances(a: &[f64], b: &[f64]) -> (f64, f64) {
     (max, rms)
 }
 
+/// What a table row needs of a run that finished: its statistics, and its final positions
+/// widened to `f64` (for the comparison with the reference).
+#[derive(Clone, Debug)]
+pub struct Finished {
+    /// The run's statistics.
+    pub stats: Stats,
+    /// The last frame of positions, if the run recorded one.
+    pub final_positions: Option<Vec<f64>>,
+}
+
+impl From<Recording> for Finished {
+    fn from(recording: Recording) -> Self {
+        let final_positions = recording.has_final.then(|| final_positions(&recording)).flatten();
+        Self { stats: recording.stats, final_positions }
+    }
+}
+
 /// Where one run of a sweep stands.
 #[derive(Debug)]
 pub enum Outcome {
-    /// It finished with a recording (succeeded, diverged or cancelled).
-    Finished(Box<Recording>),
+    /// It finished with a result (succeeded, diverged or cancelled).
+    Finished(Box<Finished>),
     /// It has no recording: its status (`queued`, `running`, `failed`, ...) and why.
     Pending {
         /// The status to show.
@@ -153,13 +171,13 @@ impl Table {
     pub fn assemble(sweep: &super::Sweep, reference: Option<&Outcome>, variants: &[Outcome]) -> Self {
         let row =
             |values: Vec<Value>, scene: &Scene, outcome: &Outcome, against: Option<&[f64]>| match outcome {
-                Outcome::Finished(recording) => Row::from_recording(values, recording, against),
+                Outcome::Finished(finished) => Row::from_finished(values, finished, against),
                 Outcome::Pending { status, detail } => {
                     Row::without_result(values, scene.integrator.kind().name(), status, detail.clone())
                 }
             };
         let reference_positions = match reference {
-            Some(Outcome::Finished(recording)) if recording.has_final => final_positions(recording),
+            Some(Outcome::Finished(finished)) => finished.final_positions.as_deref(),
             _ => None,
         };
         let reference_row = sweep
@@ -172,7 +190,7 @@ impl Table {
             .iter()
             .zip(variants)
             .map(|(variant, outcome)| {
-                row(variant.values.clone(), &variant.scene, outcome, reference_positions.as_deref())
+                row(variant.values.clone(), &variant.scene, outcome, reference_positions)
             })
             .collect();
         Table { pointers: sweep.pointers.clone(), rows, reference: reference_row }
@@ -245,48 +263,107 @@ impl Table {
             .collect()
     }
 
-    /// The table as the JSON the API and `drape sweep` print.
+    /// The table as the JSON the API and `drape sweep` print (see its [`Serialize`] impl).
     pub fn to_json(&self) -> Value {
-        let row_json = |row: &Row| {
-            let mut r = json!({
-                "values": self.pointers.iter().cloned().zip(row.values.iter().cloned()).collect::<serde_json::Map<_, _>>(),
-                "status": row.status, "integrator": row.integrator, "steps": row.steps,
-                "wall_time_s": row.wall_time_s,
-            });
-            if row.dt.is_finite() {
-                r["dt"] = row.dt.into();
-            }
-            if let Some(detail) = &row.detail {
-                r["detail"] = detail.as_str().into();
-            }
-            if let Some((max, rms)) = row.estimate {
-                r["error_estimate"] = json!({"max": max, "rms": rms});
-            }
-            if let Some((max, rms)) = row.reference_error {
-                r["error_vs_reference"] = json!({"max": max, "rms": rms});
-            }
-            if let Some(strain) = row.max_strain {
-                r["max_strain"] = strain.into();
-            }
-            if let Some(e) = row.energy {
-                r["energy"] =
-                    json!({"kinetic": e.kinetic, "gravitational": e.gravitational, "spring": e.spring});
-            }
-            r
-        };
-        let mut table =
-            json!({"pointers": self.pointers, "rows": self.rows.iter().map(row_json).collect::<Vec<_>>()});
-        if let Some(reference) = &self.reference {
-            table["reference"] = row_json(reference);
-        }
+        serde_json::to_value(self).expect("a table serializes")
+    }
+}
+
+/// The table as the API and `drape sweep` print it: `pointers`, `rows` (each with its `values`
+/// by pointer, how the run went and what it measured; a measure that does not apply is left
+/// out), the `reference` row and the observed orders (`convergence`) when there are any. Written
+/// as it is read, with no tree of values in between, so a table of thousands of rows costs its
+/// bytes alone.
+impl Serialize for Table {
+    fn serialize<S: Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
         let convergence = self.convergence();
-        if !convergence.is_empty() {
-            table["convergence"] = convergence
-                .iter()
-                .map(|c| json!({"group": c.group.iter().cloned().collect::<serde_json::Map<_, _>>(), "order": c.order, "points": c.points}))
-                .collect();
+        let mut table = serializer.serialize_map(None)?;
+        table.serialize_entry("pointers", &self.pointers)?;
+        let rows: Vec<RowJson<'_>> =
+            self.rows.iter().map(|row| RowJson { pointers: &self.pointers, row }).collect();
+        table.serialize_entry("rows", &rows)?;
+        if let Some(row) = &self.reference {
+            table.serialize_entry("reference", &RowJson { pointers: &self.pointers, row })?;
         }
-        table
+        if !convergence.is_empty() {
+            table.serialize_entry(
+                "convergence",
+                &convergence.iter().map(ConvergenceJson).collect::<Vec<_>>(),
+            )?;
+        }
+        table.end()
+    }
+}
+
+/// A row with the pointers its values belong to.
+struct RowJson<'a> {
+    pointers: &'a [String],
+    row: &'a Row,
+}
+
+impl Serialize for RowJson<'_> {
+    fn serialize<S: Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        let row = self.row;
+        let mut map = serializer.serialize_map(None)?;
+        map.serialize_entry("values", &PairsJson(self.pointers.iter().zip(&row.values)))?;
+        map.serialize_entry("status", &row.status)?;
+        map.serialize_entry("integrator", &row.integrator)?;
+        map.serialize_entry("steps", &row.steps)?;
+        map.serialize_entry("wall_time_s", &row.wall_time_s)?;
+        if row.dt.is_finite() {
+            map.serialize_entry("dt", &row.dt)?;
+        }
+        if let Some(detail) = &row.detail {
+            map.serialize_entry("detail", detail)?;
+        }
+        if let Some((max, rms)) = row.estimate {
+            map.serialize_entry("error_estimate", &MaxRms { max, rms })?;
+        }
+        if let Some((max, rms)) = row.reference_error {
+            map.serialize_entry("error_vs_reference", &MaxRms { max, rms })?;
+        }
+        if let Some(strain) = row.max_strain {
+            map.serialize_entry("max_strain", &strain)?;
+        }
+        if let Some(e) = row.energy {
+            let energy = EnergyJson { kinetic: e.kinetic, gravitational: e.gravitational, spring: e.spring };
+            map.serialize_entry("energy", &energy)?;
+        }
+        map.end()
+    }
+}
+
+/// Pointers and their values, as one JSON object.
+struct PairsJson<I>(I);
+
+impl<'a, I: Iterator<Item = (&'a String, &'a Value)> + Clone> Serialize for PairsJson<I> {
+    fn serialize<S: Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        serializer.collect_map(self.0.clone())
+    }
+}
+
+#[derive(Serialize)]
+struct MaxRms {
+    max: f64,
+    rms: f64,
+}
+
+#[derive(Serialize)]
+struct EnergyJson {
+    kinetic: f64,
+    gravitational: f64,
+    spring: f64,
+}
+
+struct ConvergenceJson<'a>(&'a Convergence);
+
+impl Serialize for ConvergenceJson<'_> {
+    fn serialize<S: Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        let mut map = serializer.serialize_map(Some(3))?;
+        map.serialize_entry("group", &PairsJson(self.0.group.iter().map(|(p, v)| (p, v))))?;
+        map.serialize_entry("order", &self.0.order)?;
+        map.serialize_entry("points", &self.0.points)?;
+        map.end()
     }
 }
 

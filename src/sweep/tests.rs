@@ -200,3 +200,42 @@ fn a_table_reads_back_from_its_json_exactly() {
     broken["rows"][2]["steps"] = json!("many");
     assert_eq!(Table::from_json(&broken).unwrap_err(), "/rows/2/steps is not a whole number");
 }
+
+#[test]
+fn a_table_is_written_as_json_member_by_member() {
+    let finished = Row {
+        values: vec![json!("rk4"), json!(0.5)],
+        status: "succeeded".into(),
+        detail: None,
+        integrator: "rk4".into(),
+        dt: 0.5,
+        steps: 2,
+        wall_time_s: 0.25,
+        estimate: Some((1e-3, 5e-4)),
+        reference_error: Some((0.125, f64::NAN)),
+        max_strain: Some(0.0625),
+        energy: Some(crate::solver::Energy { kinetic: 1.0, gravitational: -2.0, spring: 0.5 }),
+    };
+    let queued =
+        Row::without_result(vec![json!("verlet"), json!(1)], "verlet", "queued", Some("waits".into()));
+    let reference = Row { values: Vec::new(), reference_error: None, ..finished.clone() };
+    let table = Table {
+        pointers: vec!["/integrator".into(), "/dt".into()],
+        rows: vec![finished, queued],
+        reference: Some(reference),
+    };
+    let expected = concat!(
+        r#"{"pointers":["/integrator","/dt"],"rows":["#,
+        r#"{"values":{"/integrator":"rk4","/dt":0.5},"status":"succeeded","integrator":"rk4","steps":2,"#,
+        r#""wall_time_s":0.25,"dt":0.5,"error_estimate":{"max":0.001,"rms":0.0005},"#,
+        r#""error_vs_reference":{"max":0.125,"rms":null},"max_strain":0.0625,"#,
+        r#""energy":{"kinetic":1.0,"gravitational":-2.0,"spring":0.5}},"#,
+        r#"{"values":{"/integrator":"verlet","/dt":1},"status":"queued","integrator":"verlet","steps":0,"#,
+        r#""wall_time_s":0.0,"detail":"waits"}],"#,
+        r#""reference":{"values":{},"status":"succeeded","integrator":"rk4","steps":2,"wall_time_s":0.25,"#,
+        r#""dt":0.5,"error_estimate":{"max":0.001,"rms":0.0005},"max_strain":0.0625,"#,
+        r#""energy":{"kinetic":1.0,"gravitational":-2.0,"spring":0.5}}}"#,
+    );
+    assert_eq!(serde_json::to_string(&table).unwrap(), expected);
+    assert_eq!(table.to_json().to_string(), expected);
+}
