@@ -25,6 +25,17 @@
 //! which was used, and `extra_wall_time_s` counts every companion run, the diverged ones
 //! included. A companion that cannot take a single step, or a halved one that diverges too,
 //! says so instead of an estimate.
+//!
+//! A scene with contacts (colliders or self-collision) has halved companions too. A contact is
+//! an event inside a step that no integrator's order covers, so in contact the error does not
+//! shrink as `h^p`: it stays on a plateau over a range of steps and then drops, and a step on the
+//! far side of a change of contact history can be much further from the truth than the run. A
+//! doubled companion can then be far worse than the run, and `1 / (2^p - 1)` scales the
+//! difference down by 15 for RK4 where the error did not shrink at all. A halved companion is
+//! about as accurate as the run or better, so `|x_h - x_{h/2}|` lies between `e(h) - e(h/2)` and
+//! `e(h) + e(h/2)` whatever the order: near `e(h)` on a plateau, and `(1 - 2^-p) e(h)` where the
+//! order holds. It costs twice the run's steps instead of half; docs/accuracy.md has the ratios
+//! either way.
 
 use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::time::Instant;
@@ -59,7 +70,7 @@ pub struct ErrorEstimate {
 pub enum CompanionStep {
     /// `2h` (and `4h` for `richardson3`): cheap, and the default.
     Doubled,
-    /// `h/2` (and `h/4`): when the doubled step would not be stable.
+    /// `h/2` (and `h/4`): when the doubled step would not be stable, or the scene has contacts.
     Halved,
 }
 
@@ -180,10 +191,11 @@ pub(super) fn with_equilibrium(
 }
 
 /// The companions' step for a run of `steps` steps, chosen before they run: halved when the
-/// doubled step would pass the stability bound that an explicit integrator's own step keeps, or
-/// would leave no step at all.
+/// scene has contacts, or when the doubled step would pass the stability bound that an explicit
+/// integrator's own step keeps, or would leave no step at all.
 pub fn companion_step(compiled: &Compiled, method: ErrorEstimateName, steps: u64) -> CompanionStep {
-    if doubled_step_is_unstable(compiled, method) || steps < largest_factor(method) {
+    if has_contacts(compiled) || doubled_step_is_unstable(compiled, method) || steps < largest_factor(method)
+    {
         CompanionStep::Halved
     } else {
         CompanionStep::Doubled
@@ -222,6 +234,12 @@ fn largest_factor(method: ErrorEstimateName) -> u64 {
         ErrorEstimateName::Richardson3 => 4,
         _ => 2,
     }
+}
+
+/// Whether particles can meet a collider or each other: events inside a step that break the
+/// smoothness a doubled companion's extrapolation assumes.
+fn has_contacts(compiled: &Compiled) -> bool {
+    !compiled.config.colliders.is_empty() || compiled.config.self_collision.is_some()
 }
 
 /// Whether an explicit integrator's step is within its stability bound and its largest

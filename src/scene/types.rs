@@ -126,10 +126,12 @@ impl Precision {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum ErrorEstimateName {
-    /// A companion run at twice the step (the default).
+    /// A companion run at twice the step, or at half the step with contacts or near the
+    /// stability bound (the default).
     #[default]
     Richardson,
-    /// Companions at twice and four times the step, which also measure the order.
+    /// Companions at twice and four times the step (or half and a quarter), which also measure
+    /// the order.
     Richardson3,
     /// Companions at half and a quarter of the resolution, which measure the spatial error and
     /// its order (every body a cloth with a `material`).

@@ -514,8 +514,9 @@ export interface components {
             /** @description End early once at rest, checked every 64 steps and at each frame after step 0 (`null`, as left out, never): every particle slower than this, in m/s, and every unpinned particle balanced, its velocity changed by the last step by less than 1 % of |gravity| per second (or this speed per second, if larger, as without gravity). A cloth released still has not begun to fall and is not at rest; one lying still on a collider is. */
             stop_at_rest?: number | null;
             /**
-             * @description `richardson`: a companion run at twice the step estimates the error; `richardson3`: a
-             *     third at four times the step also measures the order; `resolution`: companions at half
+             * @description `richardson`: a companion run at twice the step (at half the step in a scene with
+             *     colliders or self-collision, or near the stability bound) estimates the error;
+             *     `richardson3`: a third at four times (a quarter of) the step also measures the order; `resolution`: companions at half
              *     and a quarter of the resolution (each side's n particles become (n + 1) / 2, a disk's
              *     rings (rings + 1) / 2), with the run's step and to the same end or to rest, estimate
              *     the spatial error and measure its order. `resolution` needs every body to be a cloth
@@ -1099,7 +1100,7 @@ export interface components {
                 /** @enum {string} */
                 method: "richardson" | "richardson3" | "resolution";
                 /**
-                 * @description The companions' step against the run's: doubled (and quadrupled for richardson3), or halved (and quartered) when the doubled step would pass the stability bound, the run has too few steps, or a doubled companion diverged. Absent for resolution, whose companions take the run's step.
+                 * @description The companions' step against the run's: doubled (and quadrupled for richardson3), or halved (and quartered) when the scene has colliders or self-collision (contacts break the smooth convergence a doubled companion's extrapolation assumes), the doubled step would pass the stability bound, the run has too few steps, or a doubled companion diverged. Absent for resolution, whose companions take the run's step.
                  * @enum {string}
                  */
                 companion_step?: "doubled" | "halved";
