@@ -384,8 +384,9 @@ pub fn recorded(compiled: &Compiled, plan: &Plan) -> (u64, u64) {
 
 /// Steps of the error estimate's companions, as planned before they run
 /// ([`crate::run::planned_companion_steps`]): at twice the step (and four times, for `richardson3`), or
-/// at half (and a quarter) when the doubled step would not be stable; for `resolution`, the
-/// coarser companions' steps counted in steps of the run by their share of its particles.
+/// at half (and a quarter) when the doubled step would not be stable or the scene has contacts;
+/// for `resolution`, the coarser companions' steps counted in steps of the run by their share
+/// of its particles.
 pub fn companion_steps(compiled: &Compiled) -> u64 {
     crate::run::planned_companion_steps(compiled)
 }
