@@ -629,7 +629,8 @@ fn resolve_by_blocks<T: Real>(
 
 /// Particles resting on a bumpy sheet, stepped by the stage, by blocks in lanes and one at a
 /// time: every step gives the same positions and velocities, exactly, and the lanes answer most
-/// particles, also some a hundredth of a thickness from a triangle's edge.
+/// particles, also some a hundredth of a thickness from a triangle's edge, and none wrongly at
+/// the sheet's border, where the nearest point is on an edge with no triangle beyond.
 fn lanes_give_the_one_particle_contacts<T: Real>() {
     let thickness = 0.02;
     let cells = 24;
@@ -651,6 +652,10 @@ fn lanes_give_the_one_particle_contacts<T: Real>() {
             let offset = [1e-2, -1e-2, 1e-5, -1e-5][p / 4 % 4] * thickness;
             x = ((x + 1.0) / step).round() * step - 1.0 + offset;
             marked[p] = true;
+        }
+        // And some at the sheet's border, over it or just beyond it.
+        if p % 8 == 1 {
+            x = 1.0 + 0.5 * thickness * uniform(&mut seed);
         }
         state.positions.set(p, Vec3::from_dvec3(DVec3::new(x, height(x, z) + 0.5 * thickness, z)));
         // Half slide (tangential speed beyond what friction takes), half stick; all approach.
@@ -691,10 +696,11 @@ fn lanes_give_the_one_particle_contacts<T: Real>() {
     }
     let touching = (0..particles).filter(|&p| inverse_masses[p] != T::ZERO).count() * steps;
     // The first step gathers every particle's triangles one at a time; a particle over a ridge,
-    // or a hundred-thousandth of a thickness from an edge, is left to the one-particle path.
-    assert!(answered as f64 > 0.7 * touching as f64, "lanes answered {answered} of {touching}");
+    // a hundred-thousandth of a thickness from an edge, or at the border is left to the
+    // one-particle path.
+    assert!(answered as f64 > 0.6 * touching as f64, "lanes answered {answered} of {touching}");
     assert!(answered_marked as f64 > 0.3 * (touching / 4) as f64, "near edges: {answered_marked}");
-    assert!(pushed as f64 > 0.7 * touching as f64, "{pushed} of {touching} contacts pushed a particle");
+    assert!(pushed as f64 > 0.6 * touching as f64, "{pushed} of {touching} contacts pushed a particle");
 }
 
 #[test]
