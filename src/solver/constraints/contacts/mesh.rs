@@ -17,6 +17,7 @@
 
 use crate::solver::constraints::contacts::Surface;
 use crate::solver::constraints::contacts::TriangleSurface;
+use crate::solver::constraints::contacts::mesh_lanes::FacePlanes;
 use crate::solver::constraints::contacts::nearby_triangles::{CAPACITY, KEEP, Kept, NearbyTriangles, REACH};
 use crate::solver::constraints::contacts::surface_topology::Topology;
 use crate::solver::constraints::contacts::triangle::Feature;
@@ -26,13 +27,15 @@ use crate::solver::math::vec3::Vec3;
 
 /// Below this fraction of the thickness, the direction from the nearest point is too uncertain
 /// to push along, and the triangle's normal is used.
-const DIRECTION_FLOOR: f64 = 1e-3;
+pub(super) const DIRECTION_FLOOR: f64 = 1e-3;
 
 #[derive(Clone, Debug)]
 pub(super) struct MeshShape<T> {
     bvh: TriangleBvh<T>,
     /// Unit normal of each triangle (outward for a closed mesh).
     normals: Vec<Vec3<T>>,
+    /// The triangles' planes by slot, for the one-triangle case in lanes.
+    faces: FacePlanes<T>,
     /// For a closed mesh, per triangle, the pseudo-normals of its edges and of its corners.
     pseudo_normals: Option<Vec<[[Vec3<T>; 3]; 2]>>,
     thickness: T,
@@ -49,8 +52,10 @@ impl<T: Real> MeshShape<T> {
         let bvh = TriangleBvh::new(&corners);
         let thickness = T::from_f64(thickness);
         let (lower, upper) = bvh.bounds();
+        let normals: Vec<Vec3<T>> = topology.normals.iter().map(|&n| convert(n)).collect();
         Self {
-            normals: topology.normals.iter().map(|&n| convert(n)).collect(),
+            faces: FacePlanes::new(&bvh, &normals),
+            normals,
             pseudo_normals: topology
                 .pseudo_normals
                 .map(|p| p.iter().map(|t| t.map(|f| f.map(convert))).collect()),
@@ -59,6 +64,16 @@ impl<T: Real> MeshShape<T> {
             upper: upper + Vec3::splat(thickness),
             bvh,
         }
+    }
+
+    /// The distance particles keep from the triangles.
+    pub fn thickness(&self) -> T {
+        self.thickness
+    }
+
+    /// The triangles' planes by slot.
+    pub(super) fn faces(&self) -> &FacePlanes<T> {
+        &self.faces
     }
 
     /// Whether the mesh is closed (a solid).

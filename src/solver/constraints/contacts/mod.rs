@@ -28,13 +28,15 @@
 //! point", the cheap branch-free test it starts with (`reaches`, and for the sphere `dips`), and
 //! the signed distance used to check results. A step tests a block of particles against a shape
 //! with the cheap test in vector lanes and gives only those that pass the exact one (a fixed
-//! plane, whose exact test is as cheap, resolves the whole block in lanes); particles
+//! plane, whose exact test is as cheap, resolves the whole block in lanes, and a fixed mesh
+//! resolves so the particles resting over one triangle's face, `mesh_lanes.rs`); particles
 //! are independent, so a large state is resolved in bands on the solver's threads, with the same
 //! result.
 
 mod axis_box;
 mod cylinder;
 mod mesh;
+mod mesh_lanes;
 mod nearby_triangles;
 mod plane;
 mod sphere;
@@ -457,6 +459,17 @@ impl<T: Real> Contacts<T> {
                         friction,
                         restitution,
                     );
+                    continue;
+                }
+                if let (ShapeIn::Mesh(mesh), Some(nearby), None, LANES) =
+                    (&c.shape, &c.nearby, c.moving, lanes)
+                {
+                    let resolved =
+                        mesh_lanes::resolve_lanes(mesh, nearby, &mut band, block, c.friction, c.restitution);
+                    touched |= resolved.touched;
+                    for lane in (0..LANES).filter(|&lane| resolved.rest[lane]) {
+                        touched |= band.contact(c, block + lane);
+                    }
                     continue;
                 }
                 // A moving collider's particles are seen from its frame one by one.

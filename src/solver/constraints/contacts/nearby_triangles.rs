@@ -17,14 +17,21 @@
 //! `REACH`), are kept with it. A path within `d₁` of the anchor meets no triangle, so it crosses
 //! none; and an end within `(d₂ - d₁) / 2` of the anchor is nearer to the anchor's nearest
 //! triangle than to any other (distances change no faster than the point moves), so that
-//! triangle alone is the one to test.
+//! triangle alone is the one to test. That distance is also held within how far the anchor is
+//! inside the edges of that triangle, so that such an end lies over its face: its nearest point
+//! is straight below it, which a block of particles finds side by side ([`mesh_lanes`]).
 //!
 //! Each particle's entries are read and written only by the band of particles that holds it:
 //! relaxed atomics (plain loads and stores) let the bands share the arrays without cutting them.
+//! Each value has its own array, so that a block of consecutive particles reads each from
+//! consecutive memory.
+//!
+//! [`mesh_lanes`]: super::mesh_lanes
 
 use std::sync::atomic::{AtomicU8, AtomicU32, Ordering::Relaxed};
 
 use crate::solver::constraints::contacts::triangle_bvh::TriangleBvh;
+use crate::solver::forces::spring_blocks::LANES;
 use crate::solver::math::real::Real;
 use crate::solver::math::vec3::Vec3;
 
@@ -53,26 +60,70 @@ pub(super) struct Kept {
 /// The triangles near each particle, by their slots in the hierarchy's leaf order.
 #[derive(Debug)]
 pub(super) struct NearbyTriangles {
-    anchors: Vec<[AtomicU32; 3]>,
-    /// Per particle, as `f32` bits: the square of the distance within which its path crosses
-    /// nothing, the square of the distance within which its end's nearest triangle is the
-    /// anchor's, and the slot of that triangle.
-    bounds: Vec<[AtomicU32; 3]>,
+    /// Per axis, each particle's anchor, as `f32` bits.
+    anchors: [Vec<AtomicU32>; 3],
+    /// Per particle, as `f32` bits: the square of the distance from its anchor within which its
+    /// path crosses nothing.
+    clear: Vec<AtomicU32>,
+    /// Per particle, as `f32` bits: the square of the distance from its anchor within which its
+    /// end's nearest point is straight below it on the anchor's nearest triangle; zero when
+    /// nothing usable is gathered.
+    settled: Vec<AtomicU32>,
+    /// Per particle, the slot of its anchor's nearest triangle.
+    nearest: Vec<AtomicU32>,
     /// How many of a particle's slots are in use, or [`NONE`].
     counts: Vec<AtomicU8>,
     /// [`CAPACITY`] slots per particle.
     slots: Vec<AtomicU32>,
 }
 
+/// What a block of [`LANES`] consecutive particles keeps for the one-triangle case, in the
+/// simulation's precision: the anchors per axis, the squared distances of [`NearbyTriangles`]'s
+/// `clear` and `settled`, and the slot of the anchor's nearest triangle.
+pub(super) struct SettledLanes<T> {
+    pub anchors: [[T; LANES]; 3],
+    pub clear: [T; LANES],
+    pub settled: [T; LANES],
+    pub nearest: [u32; LANES],
+}
+
 impl NearbyTriangles {
     /// Room for `particles` particles, with nothing gathered.
     pub fn new(particles: usize) -> Self {
+        let zeros = || (0..particles).map(|_| AtomicU32::new(0)).collect::<Vec<_>>();
         Self {
-            anchors: (0..particles).map(|_| Default::default()).collect(),
-            bounds: (0..particles).map(|_| Default::default()).collect(),
+            anchors: [zeros(), zeros(), zeros()],
+            clear: zeros(),
+            settled: zeros(),
+            nearest: zeros(),
             counts: (0..particles).map(|_| AtomicU8::new(NONE)).collect(),
             slots: (0..particles * CAPACITY).map(|_| AtomicU32::new(0)).collect(),
         }
+    }
+
+    /// The one-triangle values of the [`LANES`] particles from `first`, as
+    /// [`kept`](Self::kept) reads them.
+    #[inline(always)]
+    pub fn settled_lanes<T: Real>(&self, first: usize) -> SettledLanes<T> {
+        let real = |bits: &AtomicU32| T::from_f64(f32::from_bits(bits.load(Relaxed)) as f64);
+        let mut lanes = SettledLanes {
+            anchors: [[T::ZERO; LANES]; 3],
+            clear: [T::ZERO; LANES],
+            settled: [T::ZERO; LANES],
+            nearest: [0; LANES],
+        };
+        let [x, y, z] = self.anchors.each_ref().map(|axis| &axis[first..first + LANES]);
+        let (clear, settled) = (&self.clear[first..first + LANES], &self.settled[first..first + LANES]);
+        let nearest = &self.nearest[first..first + LANES];
+        for lane in 0..LANES {
+            lanes.anchors[0][lane] = real(&x[lane]);
+            lanes.anchors[1][lane] = real(&y[lane]);
+            lanes.anchors[2][lane] = real(&z[lane]);
+            lanes.clear[lane] = real(&clear[lane]);
+            lanes.settled[lane] = real(&settled[lane]);
+            lanes.nearest[lane] = nearest[lane].load(Relaxed);
+        }
+        lanes
     }
 
     /// The triangles gathered for particle `p` that its path from `start` to `end` can meet,
@@ -97,10 +148,10 @@ impl NearbyTriangles {
         if !near {
             return None;
         }
-        let [clear, settled, nearest] = self.bounds[p].each_ref().map(|b| b.load(Relaxed));
-        let clear = from.max(to) < T::from_f64(f32::from_bits(clear) as f64);
-        if clear && count > 0 && to < T::from_f64(f32::from_bits(settled) as f64) {
-            slots[0] = nearest;
+        let real = |bits: &AtomicU32| T::from_f64(f32::from_bits(bits.load(Relaxed)) as f64);
+        let clear = from.max(to) < real(&self.clear[p]);
+        if clear && count > 0 && to < real(&self.settled[p]) {
+            slots[0] = self.nearest[p].load(Relaxed);
             return Some(Kept { count: 1, clear });
         }
         let count = count as usize;
@@ -122,8 +173,8 @@ impl NearbyTriangles {
         slots: &mut [u32; CAPACITY],
     ) -> Option<usize> {
         let rounded = at.to_array().map(|x| x.to_f64() as f32);
-        for (kept, x) in self.anchors[p].iter().zip(rounded) {
-            kept.store(x.to_bits(), Relaxed);
+        for (axis, x) in self.anchors.iter().zip(rounded) {
+            axis[p].store(x.to_bits(), Relaxed);
         }
         let mut count = 0;
         let all = bvh.within(self.anchor(p), reach, |slot| {
@@ -136,6 +187,7 @@ impl NearbyTriangles {
         });
         if !all {
             self.counts[p].store(NONE, Relaxed);
+            self.settled[p].store(0, Relaxed);
             return None;
         }
         for (kept, &slot) in self.slots[p * CAPACITY..].iter().zip(&slots[..count]) {
@@ -161,17 +213,17 @@ impl NearbyTriangles {
         }
         let safety = T::from_f64(SAFETY);
         let clear = first * safety;
-        let settled = (second - first) * T::from_f64(0.5) * safety;
+        let over_face = if slots.is_empty() { T::ZERO } else { bvh.inner_margin(nearest, anchor) };
+        let settled = ((second - first) * T::from_f64(0.5)).min(over_face).max(T::ZERO) * safety;
         let bits = |x: T| (x.to_f64() as f32).to_bits();
-        let values = [bits(clear * clear), bits(settled * settled), nearest];
-        for (kept, value) in self.bounds[p].iter().zip(values) {
-            kept.store(value, Relaxed);
-        }
+        self.clear[p].store(bits(clear * clear), Relaxed);
+        self.settled[p].store(bits(settled * settled), Relaxed);
+        self.nearest[p].store(nearest, Relaxed);
     }
 
     fn anchor<T: Real>(&self, p: usize) -> Vec3<T> {
         let [x, y, z] =
-            self.anchors[p].each_ref().map(|a| T::from_f64(f32::from_bits(a.load(Relaxed)) as f64));
+            self.anchors.each_ref().map(|axis| T::from_f64(f32::from_bits(axis[p].load(Relaxed)) as f64));
         Vec3::new(x, y, z)
     }
 }

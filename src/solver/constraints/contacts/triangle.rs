@@ -143,6 +143,25 @@ impl<T: Real> TrianglePlanes<T> {
         self.normal.dot(p) - self.offset
     }
 
+    /// The unit normal (zero for a triangle of no area) and the offset: a point's height over the
+    /// plane is `normal · p - offset`, as every test here computes it.
+    #[inline(always)]
+    pub fn plane(&self) -> (Vec3<T>, T) {
+        (self.normal, self.offset)
+    }
+
+    /// How far `p` is inside every edge, less what rounding can take: a point nearer to `p` than
+    /// this lies over the face, so that [`nearest`](Self::nearest) puts its nearest point straight
+    /// below it. Negative when `p` is outside an edge or the triangle has no area.
+    pub fn inner_margin(&self, p: Vec3<T>) -> T {
+        let size = p.x.abs() + p.y.abs() + p.z.abs();
+        let slack = self.slack + T::from_f64(HEIGHT_SLACK) * size;
+        let inside = (0..3)
+            .map(|k| self.edge_normals[k].dot(p) - self.edge_offsets[k])
+            .fold(T::from_f64(f64::INFINITY), T::min);
+        inside - slack
+    }
+
     /// Whether the segment from `start` to `end` stays, with room to spare for rounding, on one
     /// side of the plane, so that it cannot cross the triangle.
     #[inline(always)]

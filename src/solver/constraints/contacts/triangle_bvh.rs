@@ -145,6 +145,22 @@ impl<T: Real> TriangleBvh<T> {
         (p - triangle::nearest_point(self.corners[slot as usize], p).0).length_squared()
     }
 
+    /// The plane of the triangle in `slot`, as [`TrianglePlanes::plane`] gives it.
+    pub(crate) fn plane(&self, slot: u32) -> (Vec3<T>, T) {
+        self.planes[slot as usize].plane()
+    }
+
+    /// How far `p` is inside the edges of the triangle in `slot` (see
+    /// [`TrianglePlanes::inner_margin`]).
+    pub(crate) fn inner_margin(&self, slot: u32, p: Vec3<T>) -> T {
+        self.planes[slot as usize].inner_margin(p)
+    }
+
+    /// The index, in the order given, of the triangle in `slot`.
+    pub(crate) fn triangle(&self, slot: u32) -> usize {
+        self.order[slot as usize] as usize
+    }
+
     /// Keeps the nearest point of the triangle in `slot` to `p` as `best` when it is nearer.
     #[inline(always)]
     fn consider_nearest(&self, slot: u32, p: Vec3<T>, best_squared: &mut T, best: &mut Option<Nearest<T>>) {
