@@ -8,6 +8,8 @@
 //! lengths, the same stiffness and damping (a spring sheet's membrane stiffness does not depend
 //! on its spacing), and masses lumped by restriction. Rediscretising costs about a third of the
 //! fine assembly, where a Galerkin product `Pᵀ A P` would cost several fine products.
+//! A fabric's bending elements, whose Jacobian is constant, are the exception: each level carries
+//! them beside its springs as a stencil built once ([`level_bending`](super::level_bending)).
 //!
 //! Transfers are bilinear interpolation `P` and its transpose, and a coarse particle is held
 //! fixed when a pinned fine particle takes its value alone. Each output row of a transfer is
