@@ -260,12 +260,49 @@ impl<T: Real> BendingElements<T> {
         }
     }
 
+    /// Subtracts `Kₖ s (K·p)` from each element's particle `k` in `out`, with `s = scale(c, d)`
+    /// of the element's stiffness and damping, run by run as
+    /// [`subtract_by_runs`](Self::subtract_by_runs) does, but with one constant and without the
+    /// particles of zero weight (a row's or column's element has three): the implicit solve's
+    /// products.
+    fn subtract_scaled_by_runs(&self, p: [&[T]; 3], scale: impl Fn(T, T) -> T, out: [&mut [T]; 3]) {
+        for &(first, length) in &self.runs {
+            let s = scale(self.stiffness[first], self.damping[first]);
+            let mut weighted = [(0, T::ZERO, T::ZERO); 4];
+            let mut count = 0;
+            for k in 0..4 {
+                let w = self.weights[k][first];
+                if w != T::ZERO {
+                    weighted[count] = (self.vertices[k][first] as usize, w, w * s);
+                    count += 1;
+                }
+            }
+            let weighted = &weighted[..count];
+            for start in (0..length).step_by(STRETCH) {
+                let n = STRETCH.min(length - start);
+                for axis in 0..3 {
+                    let mut g = [T::ZERO; STRETCH];
+                    for &(at, _, ws) in weighted {
+                        for (g, &p) in g[..n].iter_mut().zip(&p[axis][at + start..][..n]) {
+                            *g += ws * p;
+                        }
+                    }
+                    for &(at, w, _) in weighted {
+                        for (f, &g) in out[axis][at + start..][..n].iter_mut().zip(&g[..n]) {
+                            *f -= w * g;
+                        }
+                    }
+                }
+            }
+        }
+    }
+
     /// Adds `(a C + b D) p` to `y`, where `C = Σ c K Kᵀ` and `D = Σ d K Kᵀ` are the hinges'
     /// stiffness and damping matrices (per axis): implicit Euler's product with `a = h²`,
     /// `b = h`.
     pub fn add_product(&self, a: T, b: T, p: [&[T]; 3], y: [&mut [T]; 3]) {
-        // Subtracting `K (-(a c) K·p - (b d) K·p)` adds the product.
-        self.subtract_by_runs(p, p, |c, d| (T::ZERO - a * c, T::ZERO - b * d), y);
+        // Subtracting `K (-(a c + b d) K·p)` adds the product.
+        self.subtract_scaled_by_runs(p, |c, d| T::ZERO - (a * c + b * d), y);
     }
 
     /// Adds the diagonal of `a C + b D` (the same on each axis) to `diagonal`.
@@ -279,10 +316,25 @@ impl<T: Real> BendingElements<T> {
         }
     }
 
+    /// Calls `entry(p, q, c Kₚ K_q, d Kₚ K_q)` for every ordered pair of particles `(p, q)` of
+    /// every hinge with non-zero weights, `p == q` included: the entries whose sums are `C` and
+    /// `D` (per axis), for a preconditioner that stores them in its own form.
+    pub fn for_each_entry(&self, mut entry: impl FnMut(usize, usize, f64, f64)) {
+        for h in 0..self.len() {
+            let (c, d) = (self.stiffness[h].to_f64(), self.damping[h].to_f64());
+            let corners = (0..4).map(|k| (self.vertices[k][h] as usize, self.weights[k][h].to_f64()));
+            for (p, wp) in corners.clone().filter(|&(_, w)| w != 0.0) {
+                for (q, wq) in corners.clone().filter(|&(_, w)| w != 0.0) {
+                    entry(p, q, c * wp * wq, d * wp * wq);
+                }
+            }
+        }
+    }
+
     /// `-h² C v`, the stiffness term implicit Euler adds to its right-hand side (`h f` already
     /// holds the forces), added to `rhs`.
     pub fn add_velocity_term(&self, h: T, v: [&[T]; 3], rhs: [&mut [T]; 3]) {
-        self.subtract_by_runs(v, v, |c, _| (h * h * c, T::ZERO), rhs);
+        self.subtract_scaled_by_runs(v, |c, _| h * h * c, rhs);
     }
 
     /// [`add_product`](Self::add_product) for points stored as vectors: the spring-list solver's

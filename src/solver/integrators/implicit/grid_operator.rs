@@ -64,6 +64,9 @@ pub(crate) struct GridOperator<T> {
     couplings: Vec<Arrays<T, 4>>,
     /// Per particle: `ω D⁻¹`, the damped block-Jacobi smoother.
     smoother: Arrays<T, 6>,
+    /// Per particle, on a level with a term applied outside this operator (its bending): what
+    /// the smoother adds to `D`'s `xx`, `yy` and `zz` for it. Empty on any other.
+    smoother_shift: Vec<T>,
     /// Particles held fixed: their rows and columns are decoupled (only the mass on the diagonal).
     pub pinned: Vec<usize>,
     /// Whether products and smoothing are split over the pool's threads.
@@ -96,6 +99,7 @@ impl<T: Real> GridOperator<T> {
             offsets,
             diagonal: Arrays::zeros(n),
             smoother: Arrays::zeros(n),
+            smoother_shift: Vec::new(),
             pinned,
             parallel: n >= PARALLEL_PARTICLES,
         }
@@ -245,14 +249,31 @@ impl<T: Real> GridOperator<T> {
         self.update_smoother();
     }
 
-    /// `ω D⁻¹` from the diagonal blocks.
-    fn update_smoother(&mut self) {
+    /// Gives the smoother a shift per particle (zero until set through
+    /// [`smoother_shift_mut`](Self::smoother_shift_mut)), for a term the level applies outside
+    /// this operator.
+    pub fn with_smoother_shift(mut self) -> Self {
+        self.smoother_shift = vec![T::ZERO; self.len()];
+        self
+    }
+
+    /// The smoother's shift per particle, to set before the next assembly or
+    /// [`update_smoother`](Self::update_smoother); empty without one.
+    pub fn smoother_shift_mut(&mut self) -> &mut [T] {
+        &mut self.smoother_shift
+    }
+
+    /// `ω D⁻¹` from the diagonal blocks and the smoother's shift.
+    pub fn update_smoother(&mut self) {
         let omega = T::from_f64(JACOBI_DAMPING);
         let (nx, piece) = (self.nx, self.piece_rows());
-        let diagonal = self.diagonal.arrays();
+        let (diagonal, shift) = (self.diagonal.arrays(), &self.smoother_shift);
         in_bands(self.smoother.arrays_mut(), self.ny, nx, piece, &|first, _, mut s| {
             for m in 0..s[0].len() {
-                let block = Sym3::from_entries(diagonal.map(|a| a[first * nx + m]));
+                let mut block = Sym3::from_entries(diagonal.map(|a| a[first * nx + m]));
+                if let Some(&shift) = shift.get(first * nx + m) {
+                    block += Sym3::identity() * shift;
+                }
                 for (s, e) in s.iter_mut().zip((block.inverse() * omega).entries()) {
                     s[m] = e;
                 }
@@ -372,9 +393,9 @@ impl<T: Real> GridOperator<T> {
         self.smoother_products::<false>(b, x);
     }
 
-    /// `x += ω D⁻¹ (b - A x)`: one damped block-Jacobi sweep, with `r` as scratch.
-    pub fn smooth(&self, b: &Field<T>, x: &mut Field<T>, r: &mut Field<T>) {
-        self.residual(b, x, r);
+    /// `x += ω D⁻¹ r`: one damped block-Jacobi sweep from the residual `r = b - A x`, which the
+    /// caller computed (with the terms it applies outside this operator).
+    pub fn smooth_from_residual(&self, r: &Field<T>, x: &mut Field<T>) {
         self.smoother_products::<true>(r, x);
     }
 

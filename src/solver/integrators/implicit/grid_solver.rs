@@ -19,6 +19,7 @@ use std::any::{Any, TypeId};
 use rayon::prelude::*;
 
 use super::grid_operator::{Family, Field, GridOperator, RightHandSide, zero_field};
+use super::level_bending::BendingMatrices;
 use super::multigrid::Multigrid;
 use super::{SolveOutcome, StepInput, dot_slices};
 use crate::solver::forces::bending::BendingElements;
@@ -61,6 +62,18 @@ pub(crate) struct GridSolver<T> {
 impl<T: Real> GridSolver<T> {
     /// The solver for `dynamics`, if it is a single grid cloth as described above.
     pub fn new(dynamics: &Dynamics<T>) -> Option<Self> {
+        Self::with_preconditioner(dynamics, true)
+    }
+
+    /// The solver for `dynamics` whose V-cycle leaves the bending elements out, as a baseline.
+    #[cfg(test)]
+    pub fn without_bending_in_the_preconditioner(dynamics: &Dynamics<T>) -> Option<Self> {
+        Self::with_preconditioner(dynamics, false)
+    }
+
+    /// The solver for `dynamics`; its V-cycle has the bending elements when `bending` and they
+    /// reach no further than its stencils.
+    fn with_preconditioner(dynamics: &Dynamics<T>, bending: bool) -> Option<Self> {
         let [grid] = dynamics.spring_grids.as_slice() else { return None };
         let [nx, ny] = grid.resolution;
         let n = dynamics.masses.len();
@@ -117,7 +130,11 @@ impl<T: Real> GridSolver<T> {
             })
             .collect();
         let low_masses: Vec<f32> = dynamics.masses.iter().map(|&m| round(m)).collect();
-        let multigrid = Multigrid::new(nx, ny, low_families, &low_masses, pinned.clone())?;
+        let low_bending = match &dynamics.bending {
+            Some(hinges) if bending => BendingMatrices::of_hinges(hinges, nx, ny, &pinned),
+            _ => None,
+        };
+        let multigrid = Multigrid::new(nx, ny, low_families, &low_masses, pinned.clone(), low_bending)?;
         let system = (TypeId::of::<T>() != TypeId::of::<f32>())
             .then(|| GridOperator::new(nx, ny, &families, pinned.clone()));
         if multigrid.fine().is_parallel() {

@@ -25,6 +25,7 @@
 
 mod grid_operator;
 mod grid_solver;
+mod level_bending;
 mod multigrid;
 mod spring_list;
 #[cfg(test)]

@@ -8,6 +8,8 @@
 //! lengths, the same stiffness and damping (a spring sheet's membrane stiffness does not depend
 //! on its spacing), and masses lumped by restriction. Rediscretising costs about a third of the
 //! fine assembly, where a Galerkin product `Pᵀ A P` would cost several fine products.
+//! A fabric's bending elements, whose Jacobian is constant, are the exception: each level carries
+//! them beside its springs as a stencil built once ([`level_bending`](super::level_bending)).
 //!
 //! Transfers are bilinear interpolation `P` and its transpose, and a coarse particle is held
 //! fixed when a pinned fine particle takes its value alone. Each output row of a transfer is
@@ -23,6 +25,7 @@ use crate::solver::math::real::Real;
 use std::any::Any;
 
 use super::grid_operator::{Family, Field, GridOperator, zero_field};
+use super::level_bending::{BendingMatrices, LevelBending};
 use crate::solver::parallel::in_bands;
 
 /// The coarsest level has at most this many particles and is solved directly.
@@ -42,6 +45,8 @@ struct Level<T> {
     rhs: Field<T>,
     solution: Field<T>,
     residual: Field<T>,
+    /// The bending elements' part of the level, applied beside `operator`.
+    bending: Option<LevelBending<T>>,
 }
 
 /// The hierarchy, its transfers and the coarsest level's dense factor.
@@ -53,16 +58,18 @@ pub(crate) struct Multigrid<T> {
 }
 
 impl<T: Real> Multigrid<T> {
-    /// The hierarchy for an `nx × ny` grid, or `None` when the grid cannot be coarsened to a
-    /// direct solve (a strip too narrow to halve).
+    /// The hierarchy for an `nx × ny` grid, with `bending` (level 0's) on every level when
+    /// given, or `None` when the grid cannot be coarsened to a direct solve (a strip too narrow
+    /// to halve).
     pub fn new(
         nx: usize,
         ny: usize,
         families: Vec<Family<T>>,
         masses: &[T],
         pinned: Vec<usize>,
+        bending: Option<BendingMatrices>,
     ) -> Option<Self> {
-        let mut levels = vec![Level::new(nx, ny, &families, masses.to_vec(), pinned)];
+        let mut levels = vec![Level::new(nx, ny, &families, masses.to_vec(), pinned, bending)];
         loop {
             let fine = levels.last()?;
             let (nx, ny) = (fine.operator.nx, fine.operator.ny);
@@ -76,7 +83,11 @@ impl<T: Real> Multigrid<T> {
             let mut mass = vec![T::ZERO; cx * cy];
             restrict_scalar(&fine.base_mass, nx, ny, &mut mass, cx, cy, false);
             let pinned = coarse_pins(&fine.operator.pinned, nx, cx, cy);
-            levels.push(Level::new(cx, cy, &families, mass, pinned));
+            let bending = match &fine.bending {
+                Some(bending) => Some(bending.matrices().coarsened(cx, cy, &pinned)?),
+                None => None,
+            };
+            levels.push(Level::new(cx, cy, &families, mass, pinned, bending));
         }
         let last = levels.last()?;
         let coarsest = DenseCholesky::new(last.operator.len());
@@ -96,8 +107,21 @@ impl<T: Real> Multigrid<T> {
     ) {
         let scale = T::ONE + h * drag;
         let mut rest_scale = T::ONE;
-        if let Some(system) = system {
-            self.levels[0].operator.copy_from(system);
+        let h64 = h.to_f64();
+        let mut bending_changed = false;
+        for level in &mut self.levels {
+            if let Some(bending) = &mut level.bending
+                && bending.set_step(h64 * h64, h64)
+            {
+                level.operator.smoother_shift_mut().copy_from_slice(bending.smoother_shift());
+                bending_changed = true;
+            }
+        }
+        match system {
+            Some(system) => self.levels[0].operator.copy_from(system),
+            // The fine level was assembled before its smoother's shift changed.
+            None if bending_changed => self.levels[0].operator.update_smoother(),
+            None => {}
         }
         for l in 1..self.levels.len() {
             rest_scale = rest_scale + rest_scale;
@@ -115,7 +139,7 @@ impl<T: Real> Multigrid<T> {
             level.operator.assemble(&level.positions, &level.mass, &self.families, rest_scale, h, None);
         }
         let last = self.levels.last().expect("a hierarchy has a level");
-        self.coarsest.factor(&last.operator);
+        self.coarsest.factor(&last.operator, last.bending.as_ref());
     }
 
     /// The fine level's operator.
@@ -165,7 +189,7 @@ impl<T: Real> Multigrid<T> {
             let (finer, coarser) = self.levels.split_at_mut(l + 1);
             let (fine, coarse) = (&mut finer[l], &mut coarser[0]);
             fine.operator.smooth_from_zero(&fine.rhs, &mut fine.solution);
-            fine.operator.residual(&fine.rhs, &fine.solution, &mut fine.residual);
+            fine.update_residual();
             let (nx, ny, cx, cy) =
                 (fine.operator.nx, fine.operator.ny, coarse.operator.nx, coarse.operator.ny);
             let parallel = fine.operator.is_parallel();
@@ -186,7 +210,8 @@ impl<T: Real> Multigrid<T> {
                 prolong_add(coarse_axis, cx, cy, fine_axis, nx, parallel);
             }
             zero_pinned(&mut fine.solution, &fine.operator.pinned);
-            fine.operator.smooth(&fine.rhs, &mut fine.solution, &mut fine.residual);
+            fine.update_residual();
+            fine.operator.smooth_from_residual(&fine.residual, &mut fine.solution);
         }
     }
 
@@ -198,16 +223,33 @@ impl<T: Real> Multigrid<T> {
 }
 
 impl<T: Real> Level<T> {
-    fn new(nx: usize, ny: usize, families: &[Family<T>], base_mass: Vec<T>, pinned: Vec<usize>) -> Self {
+    fn new(
+        nx: usize,
+        ny: usize,
+        families: &[Family<T>],
+        base_mass: Vec<T>,
+        pinned: Vec<usize>,
+        bending: Option<BendingMatrices>,
+    ) -> Self {
         let n = nx * ny;
+        let operator = GridOperator::new(nx, ny, families, pinned);
         Self {
-            operator: GridOperator::new(nx, ny, families, pinned),
+            operator: if bending.is_some() { operator.with_smoother_shift() } else { operator },
             positions: zero_field(n),
             mass: base_mass.clone(),
             base_mass,
             rhs: zero_field(n),
             solution: zero_field(n),
             residual: zero_field(n),
+            bending: bending.map(LevelBending::new),
+        }
+    }
+
+    /// `residual = rhs - (A + G) solution`, of the operator `A` and the bending `G`.
+    fn update_residual(&mut self) {
+        self.operator.residual(&self.rhs, &self.solution, &mut self.residual);
+        if let Some(bending) = &self.bending {
+            bending.subtract_product(&self.solution, &mut self.residual, self.operator.is_parallel());
         }
     }
 }
@@ -224,7 +266,7 @@ fn zero_pinned<T: Real>(field: &mut Field<T>, pinned: &[usize]) {
 /// an even index is a coarse point; an odd one lies halfway between two, or past the last one
 /// on an even-sized axis, where it takes the last coarse value.
 #[inline]
-fn parents<T: Real>(i: usize, coarse: usize) -> [(usize, T); 2] {
+pub(crate) fn parents<T: Real>(i: usize, coarse: usize) -> [(usize, T); 2] {
     let half = T::from_f64(0.5);
     if i.is_multiple_of(2) {
         [(i / 2, T::ONE), (i / 2, T::ZERO)]
@@ -329,7 +371,14 @@ fn restrict_row_add<T: Real>(f: &[T], out: &mut [T], weight: T) {
 }
 
 /// `fine += P coarse` for one scalar array, each fine row from its parent coarse rows.
-fn prolong_add<T: Real>(coarse: &[T], cx: usize, cy: usize, fine: &mut [T], nx: usize, parallel: bool) {
+pub(crate) fn prolong_add<T: Real>(
+    coarse: &[T],
+    cx: usize,
+    cy: usize,
+    fine: &mut [T],
+    nx: usize,
+    parallel: bool,
+) {
     let half = T::from_f64(0.5);
     by_rows(fine, nx, parallel, |first, rows| {
         for (k, f) in rows.chunks_exact_mut(nx).enumerate() {
@@ -387,7 +436,8 @@ impl DenseCholesky {
         Self { size, matrix: vec![0.0; size * size], work: vec![0.0; size], factored: false }
     }
 
-    fn factor<T: Real>(&mut self, operator: &GridOperator<T>) {
+    /// Factors `operator` plus, on each axis, `bending`.
+    fn factor<T: Real>(&mut self, operator: &GridOperator<T>, bending: Option<&LevelBending<T>>) {
         let (n, size) = (operator.len(), self.size);
         self.matrix.fill(0.0);
         let (nx, ny) = (operator.nx as isize, operator.ny as isize);
@@ -410,6 +460,13 @@ impl DenseCholesky {
                     }
                 }
             }
+        }
+        if let Some(bending) = bending {
+            bending.for_each_entry(|p, q, g| {
+                for a in 0..3 {
+                    self.matrix[(3 * p + a) * size + 3 * q + a] += g;
+                }
+            });
         }
         self.factored = true;
         for k in 0..size {
@@ -547,7 +604,7 @@ mod tests {
             family([0, 2]),
         ];
         let masses = vec![1.0 / (n * n) as f64; n * n];
-        let mut multigrid = Multigrid::new(n, n, families.clone(), &masses, vec![0, n - 1]).unwrap();
+        let mut multigrid = Multigrid::new(n, n, families.clone(), &masses, vec![0, n - 1], None).unwrap();
         let mut positions = zero_field(n * n);
         let [px, py, pz] = positions.arrays_mut();
         for (p, ((x, y), z)) in px.iter_mut().zip(py.iter_mut()).zip(pz.iter_mut()).enumerate() {
