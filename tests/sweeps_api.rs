@@ -291,6 +291,16 @@ async fn a_sweep_of_a_thousand_variants_is_one_entry_within_the_default_queue() 
         assert_eq!(row["status"], "succeeded", "{row}");
         assert_eq!(row["steps"].as_f64(), Some((0.1 / row["dt"].as_f64().unwrap()).round()), "{row}");
     }
+    // The service's throughput counts the sweep's runs: 7 particles times each run's steps.
+    let steps: f64 = rows.iter().map(|row| row["steps"].as_f64().unwrap()).sum();
+    let metrics = get(&app, "/metrics").await.text();
+    let counter = |name: &str| -> f64 {
+        let line =
+            metrics.lines().find(|l| l.starts_with(name)).unwrap_or_else(|| panic!("{name}: {metrics}"));
+        line.rsplit(' ').next().unwrap().parse().unwrap()
+    };
+    assert_eq!(counter("drape_particle_steps_total"), 7.0 * steps);
+    assert!(counter("drape_worker_busy_seconds_total") > 0.0, "{metrics}");
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

@@ -81,20 +81,20 @@ pub async fn metrics(State(state): State<AppState>) -> Result<Response, AppError
     family(
         "particle_steps_total",
         "counter",
-        "Particle-steps taken by ended jobs.",
+        "Particle-steps taken by ended jobs and sweep runs.",
         &[(String::new(), particle_steps as f64)],
     );
     family(
         "worker_busy_seconds_total",
         "counter",
-        "Worker time spent on ended jobs.",
+        "Worker time spent on ended jobs and sweep runs.",
         &[(String::new(), busy.as_secs_f64())],
     );
     let rate = if busy.is_zero() { 0.0 } else { particle_steps as f64 / busy.as_secs_f64() };
     family(
         "particle_steps_per_second",
         "gauge",
-        "Particle-steps per second of worker time, over ended jobs.",
+        "Particle-steps per second of worker time, over ended jobs and sweep runs.",
         &[(String::new(), rate)],
     );
 

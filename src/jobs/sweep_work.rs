@@ -28,12 +28,12 @@ use std::time::{Duration, Instant};
 use super::encode::encode_result;
 use super::id::JobId;
 use super::live::{CANCELLED, SHUT_DOWN};
-use super::record::now_ms;
+use super::record::{Plan, now_ms};
 use super::shared::Shared;
 use super::status::JobStatus;
 use super::store::{ClaimedRun, ClaimedRuns, RunEnd, StoreError, attempts_exhausted};
 use super::sweep_live::Batch;
-use crate::run::{Status, execute};
+use crate::run::{Stats, Status, execute};
 use crate::solver::parallel;
 use crate::sweep::Sweep;
 
@@ -174,7 +174,9 @@ fn run_one(shared: &Shared, batch: &Batch, sweep: &Sweep, index: u32) -> RunEnd 
             let reasons: Vec<String> = errors.iter().map(ToString::to_string).collect();
             format!("the run exceeds this instance's limits: {}", reasons.join("; "))
         })?;
+        let began = Instant::now();
         let recording = execute(&compiled.compiled, &control);
+        count_work(shared, &compiled.plan, &recording.stats, began.elapsed());
         // A sweep run's result is its final positions: quick to encode whatever stopped the run.
         let encoded = encode_result(&recording, &compiled.compiled.output, &|| false)
             .map_err(|e| format!("the result could not be encoded: {e}"))?;
@@ -206,6 +208,15 @@ fn run_one(shared: &Shared, batch: &Batch, sweep: &Sweep, index: u32) -> RunEnd 
         Status::Cancelled => ended(index, JobStatus::Cancelled, Some(CANCELLED.into()), Some(bytes)),
         Status::Failed => ended(index, JobStatus::Failed, stats.failure.clone(), None),
     }
+}
+
+/// Adds a sweep run to the service's throughput counters as a job's end adds a job: its
+/// particle-steps (the companions' only when it succeeded) and its time on the worker.
+fn count_work(shared: &Shared, plan: &Plan, stats: &Stats, took: Duration) {
+    let companions = if stats.status == Status::Succeeded { plan.companion_steps } else { 0 };
+    let work = plan.particles.saturating_mul(stats.steps.saturating_add(companions));
+    shared.particle_steps.fetch_add(work, Ordering::Relaxed);
+    shared.busy_nanos.fetch_add(took.as_nanos() as u64, Ordering::Relaxed);
 }
 
 #[cfg(test)]
