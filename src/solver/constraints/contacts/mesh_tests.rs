@@ -94,6 +94,29 @@ pub(crate) fn sheet(y: f64, size: f64, n: u32) -> TriangleSurface {
     TriangleSurface { vertices, triangles }
 }
 
+/// The height of the bumpy sheet of [`bumpy_sheet`] over `(x, z)`.
+fn bump_height(x: f64, z: f64) -> f64 {
+    0.05 * (7.0 * x).sin() * (5.0 * z).cos()
+}
+
+/// A 2 m sheet of `2 n²` triangles raised into bumps: no two neighbouring triangles in a plane.
+fn bumpy_sheet(n: u32) -> TriangleSurface {
+    let mut bumpy = sheet(0.0, 2.0, n);
+    for v in &mut bumpy.vertices {
+        v.y = bump_height(v.x, v.z);
+    }
+    bumpy
+}
+
+/// Whether a contact found with the kept triangles is the one the whole hierarchy finds: equal
+/// but for rounding, since at an edge the two triangles give its point each its own way.
+fn same_contact(with_kept: Option<Surface<f64>>, walked: Option<Surface<f64>>) -> bool {
+    match (with_kept, walked) {
+        (Some(a), Some(b)) => (a.point - b.point).length() < 1e-12 && (a.normal - b.normal).length() < 1e-12,
+        (a, b) => a == b,
+    }
+}
+
 fn mesh(surface: TriangleSurface, thickness: f64, friction: f64, restitution: f64) -> Collider {
     Collider {
         shape: Shape::Mesh { surface: Arc::new(surface), thickness },
@@ -250,14 +273,10 @@ fn kept_triangles_give_the_hierarchys_contacts(
             kept_steps += usize::from(kept.is_some_and(|k| k.count > 0));
             let with_kept = shape.contact(x, end, Some((&nearby, p)));
             let walked = shape.contact(x, end, None);
-            // Equal but for rounding: at an edge the two triangles give its point each its own way.
-            let same = match (with_kept, walked) {
-                (Some(a), Some(b)) => {
-                    (a.point - b.point).length() < 1e-12 && (a.normal - b.normal).length() < 1e-12
-                }
-                (a, b) => a == b,
-            };
-            assert!(same, "particle {p}, step {step}: {x:?} to {end:?}: {with_kept:?} against {walked:?}");
+            assert!(
+                same_contact(with_kept, walked),
+                "particle {p}, step {step}: {x:?} to {end:?}: {with_kept:?} against {walked:?}"
+            );
             x = walked.map_or(end, |s| s.point);
         }
     }
@@ -277,10 +296,7 @@ fn the_triangles_kept_near_a_particle_give_the_contacts_the_hierarchy_gives() {
     let share = kept_triangles_give_the_hierarchys_contacts(&sphere, thickness, around, inwards);
     assert!(share > 0.2, "only {share} of the steps on the sphere kept their triangles");
     // A bumpy open sheet, particles falling onto it from above.
-    let mut bumpy = sheet(0.0, 2.0, 24);
-    for v in &mut bumpy.vertices {
-        v.y = 0.05 * (7.0 * v.x).sin() * (5.0 * v.z).cos();
-    }
+    let bumpy = bumpy_sheet(24);
     let above = |seed: &mut u64| Vec3::new(0.8 * uniform(seed), 0.1, 0.8 * uniform(seed));
     let down = |_: Vec3<f64>| Vec3::new(0.0, -0.2, 0.0);
     let share = kept_triangles_give_the_hierarchys_contacts(&bumpy, thickness, above, down);
@@ -293,10 +309,7 @@ fn a_particle_resting_on_a_mesh_meets_only_its_nearest_triangle_and_crosses_none
     // lying on a mesh is: after the first step each meets one kept triangle and tests no
     // crossing, and its contact is still the one the whole hierarchy gives.
     let thickness = 0.02;
-    let mut bumpy = sheet(0.0, 2.0, 24);
-    for v in &mut bumpy.vertices {
-        v.y = 0.05 * (7.0 * v.x).sin() * (5.0 * v.z).cos();
-    }
+    let bumpy = bumpy_sheet(24);
     let shape = mesh::MeshShape::<f64>::new(&bumpy, thickness);
     let (particles, steps) = (64, 50);
     let nearby = nearby_triangles::NearbyTriangles::new(particles);
@@ -304,7 +317,7 @@ fn a_particle_resting_on_a_mesh_meets_only_its_nearest_triangle_and_crosses_none
     let (mut alone, mut touching) = (0, 0);
     for p in 0..particles {
         let (x, z) = (0.8 * uniform(&mut seed), 0.8 * uniform(&mut seed));
-        let over = Vec3::new(x, 0.05 * (7.0 * x).sin() * (5.0 * z).cos() + 0.5 * thickness, z);
+        let over = Vec3::new(x, bump_height(x, z) + 0.5 * thickness, z);
         let mut x = shape.inside(over).unwrap().point;
         for step in 0..steps {
             let slide = Vec3::new(uniform(&mut seed), 0.0, uniform(&mut seed)) * 1e-6;
@@ -314,13 +327,10 @@ fn a_particle_resting_on_a_mesh_meets_only_its_nearest_triangle_and_crosses_none
             alone += usize::from(kept == Some(nearby_triangles::Kept { count: 1, clear: true }));
             let with_kept = shape.contact(x, end, Some((&nearby, p)));
             let walked = shape.contact(x, end, None);
-            let same = match (with_kept, walked) {
-                (Some(a), Some(b)) => {
-                    (a.point - b.point).length() < 1e-12 && (a.normal - b.normal).length() < 1e-12
-                }
-                (a, b) => a == b,
-            };
-            assert!(same, "particle {p}, step {step}: {with_kept:?} against {walked:?}");
+            assert!(
+                same_contact(with_kept, walked),
+                "particle {p}, step {step}: {with_kept:?} against {walked:?}"
+            );
             touching += usize::from(walked.is_some());
             x = walked.map_or(end, |s| s.point);
         }
@@ -634,11 +644,7 @@ fn resolve_by_blocks<T: Real>(
 fn lanes_give_the_one_particle_contacts<T: Real>() {
     let thickness = 0.02;
     let cells = 24;
-    let mut bumpy = sheet(0.0, 2.0, cells);
-    let height = |x: f64, z: f64| 0.05 * (7.0 * x).sin() * (5.0 * z).cos();
-    for v in &mut bumpy.vertices {
-        v.y = height(v.x, v.z);
-    }
+    let bumpy = bumpy_sheet(cells);
     let collider = mesh(bumpy, thickness, 0.4, 0.3);
     let particles = 1024;
     let mut seed = 11;
@@ -657,7 +663,7 @@ fn lanes_give_the_one_particle_contacts<T: Real>() {
         if p % 8 == 1 {
             x = 1.0 + 0.5 * thickness * uniform(&mut seed);
         }
-        state.positions.set(p, Vec3::from_dvec3(DVec3::new(x, height(x, z) + 0.5 * thickness, z)));
+        state.positions.set(p, Vec3::from_dvec3(DVec3::new(x, bump_height(x, z) + 0.5 * thickness, z)));
         // Half slide (tangential speed beyond what friction takes), half stick; all approach.
         let tangential = if p % 2 == 0 { 1e-2 } else { 1e-5 };
         let velocity = DVec3::new(tangential * uniform(&mut seed), -1e-3, tangential * uniform(&mut seed));
