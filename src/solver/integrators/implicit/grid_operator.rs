@@ -77,12 +77,12 @@ pub(crate) struct GridOperator<T> {
 /// radius below one since `λ(D⁻¹A) ≤ 2` for a sum of positive semi-definite spring blocks.
 /// Measured on the peers' cloth at 128², 0.9 takes 13 iterations per step where 0.7 takes 14
 /// and 0.6 takes 16.
-const JACOBI_DAMPING: f64 = 0.9;
+pub(crate) const JACOBI_DAMPING: f64 = 0.9;
 
 /// Grids (and multigrid levels) with at least this many particles split their work over the
 /// pool's threads: a 64² cloth (4,096 particles) has enough work in each pass to gain from the
 /// split, and the next size down, 32², is a quarter of it (`docs/decisions.md`).
-const PARALLEL_PARTICLES: usize = 4_096;
+pub(crate) const PARALLEL_PARTICLES: usize = 4_096;
 
 /// Below this squared length a spring has no direction and contributes nothing.
 const TINY_SQUARED_LENGTH: f64 = 1e-30;
@@ -428,7 +428,29 @@ impl<T: Real> GridOperator<T> {
         }
     }
 
+    /// The diagonal blocks' entries `[xx, yy, zz, xy, xz, yz]`, one array each.
+    pub fn diagonal_arrays(&self) -> [&[T]; 6] {
+        self.diagonal.arrays()
+    }
+
+    /// Per offset, the couplings `[u_x, u_y, u_z, σ]` at each lower particle (see the type's
+    /// fields).
+    pub fn coupling_arrays(&self) -> impl Iterator<Item = ([isize; 2], [&[T]; 4])> {
+        self.offsets.iter().copied().zip(self.couplings.iter().map(Arrays::arrays))
+    }
+
+    /// The smoother's block `ω D⁻¹` of particle `p`.
+    pub fn smoother_block(&self, p: usize) -> Sym3<T> {
+        Sym3::from_entries(self.smoother.arrays().map(|a| a[p]))
+    }
+
+    /// The smoother's shift per particle; empty without one.
+    pub fn smoother_shift(&self) -> &[T] {
+        &self.smoother_shift
+    }
+
     /// The stencil offsets, for walking the couplings of a particle.
+    #[cfg(test)]
     pub fn offsets(&self) -> &[[isize; 2]] {
         &self.offsets
     }

@@ -129,12 +129,11 @@ impl<T: Real> GridSolver<T> {
                 damping: round(f.damping),
             })
             .collect();
-        let low_masses: Vec<f32> = dynamics.masses.iter().map(|&m| round(m)).collect();
         let low_bending = match &dynamics.bending {
             Some(hinges) if bending => BendingMatrices::of_hinges(hinges, nx, ny, &pinned),
             _ => None,
         };
-        let multigrid = Multigrid::new(nx, ny, low_families, &low_masses, pinned.clone(), low_bending)?;
+        let multigrid = Multigrid::new(nx, ny, low_families, pinned.clone(), low_bending)?;
         let system = (TypeId::of::<T>() != TypeId::of::<f32>())
             .then(|| GridOperator::new(nx, ny, &families, pinned.clone()));
         if multigrid.fine().is_parallel() {
@@ -214,7 +213,7 @@ impl<T: Real> GridSolver<T> {
             hinges.add_velocity_term(h, input.velocities.arrays(), self.rhs.arrays_mut());
         }
         let round = |value: T| value.to_f64() as f32;
-        self.multigrid.assemble(self.system.as_ref(), input.positions, round(h), round(input.drag));
+        self.multigrid.assemble::<T>(self.system.as_ref(), round(h), None);
         zero_pinned(&mut self.rhs, &self.pinned);
         zero_pinned(&mut self.delta_v, &self.pinned);
         self.conjugate_gradients(tolerance, max_iterations, interrupt)

@@ -1,20 +1,15 @@
-//! The bending elements' part of each level of the multigrid preconditioner.
+//! The bending elements' part of level 0 of the multigrid preconditioner.
 //!
 //! The elements' Jacobian is constant and acts on each axis alike (`C = Σ c K Kᵀ`, and `D` of
-//! the damping constants), so a level's part of the system `h D + h² C` is a scalar stencil on
-//! the level's grid, built once when the solver is made: level 0's from the elements, with the
-//! rows and columns of pinned particles left out as the solve filters them; each coarser level's
-//! as the Galerkin product `Pᵀ A P` of the level above, with the multigrid's transfers and with
-//! the coarse level's pins left out. A grid's elements reach two particles along a row or column
-//! and one across a cell, so level 0 has 13 points; the products keep every coarser level
-//! within two particles (21 points).
-//!
-//! The product `Pᵀ A P`, and not the elements rediscretised on the coarse grid: a coarse
+//! the damping constants), so level 0's part of the system `h D + h² C` is a scalar stencil on
+//! the grid, built once when the solver is made from the elements, with the rows and columns of
+//! pinned particles left out as the solve filters them. A grid's elements reach two particles
+//! along a row or column and one across a cell, so the stencil has 13 points. The coarse levels
+//! are Galerkin products of level 0 with its bending ([`galerkin`](super::galerkin)): a coarse
 //! correction minimises the fine energy of its interpolant, and bilinear interpolation bends
 //! along the coarse rows and columns, so the interpolant of a coarse bend has twice the row and
-//! column energy of the same bend discretised on the coarse grid. A rediscretised level would
-//! be half as stiff as the correction it stands for, and the mismatch would compound over the
-//! levels; the Galerkin level is exact by construction and costs only memory on the coarse grids.
+//! column energy of the same bend discretised on the coarse grid; a rediscretised level would be
+//! half as stiff as the correction it stands for.
 //!
 //! Damped block Jacobi needs `A ≤ 2 D̃` of the diagonal `D̃` it inverts. The springs meet it with
 //! their own diagonal blocks, but bending elements do not (a checkerboard bend has four times
@@ -24,7 +19,6 @@
 //! positive definite, and the smoother keeps its damping.
 
 use super::grid_operator::Field;
-use super::multigrid::parents;
 use crate::solver::forces::bending::BendingElements;
 use crate::solver::math::real::Real;
 use crate::solver::parallel::in_bands;
@@ -126,63 +120,6 @@ impl Stencil<f64> {
     }
 }
 
-/// The Galerkin product `Pᵀ G P` of `fine` on the `cx × cy` grid below it, with the rows and
-/// columns of the coarse `pinned` particles left out.
-fn coarsened(fine: &Stencil<f64>, cx: usize, cy: usize, pinned: &[usize]) -> Option<Stencil<f64>> {
-    let (nx, ny) = (fine.nx, fine.ny);
-    // The coarse parents of each fine column and row with their (non-zero) weights.
-    let parents_along = |n: usize, coarse: usize| -> Vec<Vec<(isize, f64)>> {
-        (0..n)
-            .map(|i| parents::<f64>(i, coarse).into_iter().filter(|&(_, w)| w != 0.0))
-            .map(|parents| parents.map(|(c, w)| (c as isize, w)).collect())
-            .collect()
-    };
-    let (along_i, along_j) = (parents_along(nx, cx), parents_along(ny, cy));
-    let mut coarse = Stencil::empty(cx, cy);
-    let mut reached = true;
-    // Adds `g` times the weights to the coarse entries between the parents of fine `(i, j)` and
-    // those of fine `(k, l)`, the entries ahead only (see `Stencil::add`).
-    let mut spread = |[i, j]: [usize; 2], [k, l]: [usize; 2], g: f64| {
-        for &(aj, wj) in &along_j[j] {
-            for &(ai, wi) in &along_i[i] {
-                let a = (aj * cx as isize + ai) as usize;
-                for &(bj, wl) in &along_j[l] {
-                    for &(bi, wk) in &along_i[k] {
-                        let (di, dj) = (bi - ai, bj - aj);
-                        let value = wi * wj * wk * wl * g;
-                        if di == 0 && dj == 0 {
-                            coarse.diagonal[a] += value;
-                        } else if dj > 0 || (dj == 0 && di > 0) {
-                            if di.abs() > REACH || dj > REACH {
-                                reached = false;
-                                continue;
-                            }
-                            coarse.couplings[slot([di, dj])][a] += value;
-                        }
-                    }
-                }
-            }
-        }
-    };
-    for j in 0..ny {
-        for i in 0..nx {
-            let p = j * nx + i;
-            if fine.diagonal[p] != 0.0 {
-                spread([i, j], [i, j], fine.diagonal[p]);
-            }
-            for (&[di, dj], coupling) in fine.offsets.iter().zip(&fine.couplings) {
-                if coupling[p] != 0.0 {
-                    let q = [(i as isize + di) as usize, j + dj as usize];
-                    spread([i, j], q, coupling[p]);
-                    spread(q, [i, j], coupling[p]);
-                }
-            }
-        }
-    }
-    coarse.decouple(pinned);
-    reached.then_some(coarse)
-}
-
 /// The stiffness and damping stencils of one level, keeping only the offsets where either has a
 /// non-zero entry.
 #[derive(Clone, Debug)]
@@ -208,13 +145,6 @@ impl BendingMatrices {
         stiffness.decouple(pinned);
         damping.decouple(pinned);
         reached.then(|| Self::pruned(stiffness, damping))
-    }
-
-    /// The Galerkin matrices of the `cx × cy` level below, with its `pinned` particles.
-    pub fn coarsened(&self, cx: usize, cy: usize, pinned: &[usize]) -> Option<Self> {
-        let stiffness = coarsened(&self.stiffness, cx, cy, pinned)?;
-        let damping = coarsened(&self.damping, cx, cy, pinned)?;
-        Some(Self::pruned(stiffness, damping))
     }
 
     /// Both stencils without the offsets at which both are zero everywhere.
@@ -257,11 +187,6 @@ impl<T: Real> LevelBending<T> {
             couplings: stiffness.offsets.iter().map(|_| vec![T::ZERO; n]).collect(),
         };
         Self { matrices, step, coefficients: None, smoother_shift: vec![T::ZERO; n] }
-    }
-
-    /// The level's matrices, for the level below to coarsen.
-    pub fn matrices(&self) -> &BendingMatrices {
-        &self.matrices
     }
 
     /// Makes the level's operator `a C + b D` (implicit Euler's `a = h²`, `b = h`) and its
@@ -332,10 +257,14 @@ impl<T: Real> LevelBending<T> {
         });
     }
 
-    /// Calls `entry(p, q, G[p, q])` for every non-zero entry of the level's operator, both
-    /// orders of each coupling: for the coarsest level's dense factor.
-    pub fn for_each_entry(&self, mut entry: impl FnMut(usize, usize, f64)) {
-        self.step.for_each_entry(|p, q, g| entry(p, q, g.to_f64()));
+    /// The level operator's diagonal, per particle.
+    pub fn diagonal(&self) -> &[T] {
+        &self.step.diagonal
+    }
+
+    /// Per offset ahead, the level operator's entry `G[p, p + off]` at each lower particle `p`.
+    pub fn couplings(&self) -> impl Iterator<Item = ([isize; 2], &[T])> {
+        self.step.offsets.iter().copied().zip(self.step.couplings.iter().map(Vec::as_slice))
     }
 }
 
@@ -357,7 +286,6 @@ mod tests {
     use super::*;
     use crate::solver::forces::bending::grid_bending;
     use crate::solver::integrators::implicit::grid_operator::zero_field;
-    use crate::solver::integrators::implicit::multigrid::prolong_add;
 
     /// A fabric's elements on an `nx × ny` grid of spacings 0.1 and 0.12 m, with
     /// `B = 2e-3 N·m` and a damping time of 1e-2 s.
@@ -417,43 +345,6 @@ mod tests {
                     got[axis][p]
                 );
             }
-        }
-    }
-
-    /// `x_c · G_c y_c = (P x_c) · G (P y_c)` for every pair of coarse fields: the coarse level is
-    /// the Galerkin product, on odd and even grids, and stays within two particles.
-    #[test]
-    fn a_coarse_level_is_the_galerkin_product_of_the_level_above() {
-        for (nx, ny) in [(13usize, 11usize), (12, 10), (9, 16)] {
-            let (cx, cy) = (nx.div_ceil(2), ny.div_ceil(2));
-            // Corners on odd axes are coarse particles; on even ones the last fine particle
-            // takes the last coarse one's value alone, so the same coarse particle is pinned.
-            let (pinned, coarse_pinned) = ([0, nx - 1], [0, cx - 1]);
-            let matrices = BendingMatrices::of_hinges(&hinges(nx, ny), nx, ny, &pinned).unwrap();
-            let coarse_matrices = matrices.coarsened(cx, cy, &coarse_pinned).unwrap();
-            let (mut fine, mut coarse) = (LevelBending::new(matrices), LevelBending::new(coarse_matrices));
-            fine.set_step(A, B);
-            coarse.set_step(A, B);
-            assert!(coarse.step.offsets.iter().all(|&[di, dj]| di.abs() <= 2 && dj <= 2));
-            let (xc, yc) = (wiggle(cx * cy, 0.3, &coarse_pinned), wiggle(cx * cy, 2.9, &coarse_pinned));
-            let interpolated = |c: &Field<f64>| {
-                let mut f = zero_field(nx * ny);
-                for (f, c) in f.iter_mut().zip(c) {
-                    prolong_add(c, cx, cy, f, nx, false);
-                }
-                for axis in &mut f {
-                    for &p in &pinned {
-                        axis[p] = 0.0;
-                    }
-                }
-                f
-            };
-            let on_coarse = dot(&xc, &product(&coarse, &yc));
-            let on_fine = dot(&interpolated(&xc), &product(&fine, &interpolated(&yc)));
-            assert!(
-                (on_coarse - on_fine).abs() <= 1e-12 * on_fine.abs(),
-                "{nx}×{ny}: {on_coarse} against {on_fine}"
-            );
         }
     }
 

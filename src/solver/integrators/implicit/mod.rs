@@ -23,6 +23,7 @@
 //! Wind enters the right-hand side at the start of the step but not the matrix: it is weak next
 //! to the springs, and its derivative (through the moving normals) is neither symmetric nor cheap.
 
+mod galerkin;
 mod grid_operator;
 mod grid_solver;
 mod level_bending;

@@ -6,10 +6,13 @@
 use glam::DVec3;
 
 use super::*;
-use crate::solver::bodies::Cloth;
+use crate::solver::bodies::{Cloth, Orientation};
+use crate::solver::constraints::contacts::{Collider, Shape};
 use crate::solver::fabric::Fabric;
+use crate::solver::integrators::IntegratorKind;
 use crate::solver::math::vec3::Vec3;
 use crate::solver::model::{Model, SpringParams};
+use crate::solver::simulation::{Config, Simulation};
 use crate::solver::state::State;
 
 /// The performance peers' hanging cloth at `n × n`: 1 m², 1 kg, every spring at k = 5000 N/m and
@@ -231,4 +234,50 @@ fn a_fabric_converges_in_a_few_iterations_with_its_bending_in_the_v_cycle() {
 fn a_fabric_step_is_the_same_with_its_bending_in_the_v_cycle() {
     let (model, drag) = peers_fabric(32);
     grid_and_list_steps_agree(&model, drag);
+}
+
+/// `examples/drape_sphere.json` at `n × n` with implicit Euler at the frame interval: a 1 m²
+/// sheet of 0.4 kg released flat 0.2 m above a sphere of radius 0.3 m standing on the floor.
+fn drape_onto_sphere(n: usize) -> (Model, Config) {
+    let mut model = Model::default();
+    model.add_cloth(&Cloth {
+        size: [1.0, 1.0],
+        resolution: [n, n],
+        center: DVec3::new(0.0, 1.0, 0.0),
+        orientation: Orientation::Horizontal,
+        mass: 0.4,
+        velocity: DVec3::ZERO,
+        structural: SpringParams { stiffness: 2000.0, damping: 2.0 },
+        shear: SpringParams { stiffness: 200.0, damping: 0.2 },
+        bending: SpringParams { stiffness: 20.0, damping: 0.02 },
+        pins: vec![],
+    });
+    let surface = |shape| Collider { shape, friction: 0.5, restitution: 0.0, motion: None };
+    let config = Config {
+        integrator: IntegratorKind::ImplicitEuler,
+        dt: 1.0 / 60.0,
+        drag: 0.2,
+        colliders: vec![
+            surface(Shape::Sphere { center: DVec3::new(0.0, 0.5, 0.0), radius: 0.3 }),
+            surface(Shape::Plane { point: DVec3::ZERO, normal: DVec3::Y }),
+        ],
+        ..Config::default()
+    };
+    (model, config)
+}
+
+/// In contact and under compression at the frame interval, the multigrid with Galerkin coarse
+/// levels keeps the solves converging in tens of iterations (34.0 per step, 51 at most, over
+/// these 60 steps); with coarse levels rediscretised at the current positions the same steps
+/// took 131.5 per step, 21 of them stopped at the cap of 200.
+#[test]
+fn a_drape_in_contact_at_frame_steps_converges_within_a_bounded_count() {
+    let (model, config) = drape_onto_sphere(64);
+    let mut simulation = Simulation::<f64>::new(&model, &config);
+    for _ in 0..60 {
+        simulation.step().expect("the drape stays stable");
+    }
+    let stats = simulation.linear_solve_stats().expect("implicit Euler reports its solves");
+    assert_eq!(stats.unconverged_solves, 0, "{stats:?}");
+    assert!(stats.total_iterations <= 60 * 45 && stats.most_iterations <= 70, "{stats:?}");
 }
