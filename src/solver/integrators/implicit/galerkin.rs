@@ -30,7 +30,7 @@ use crate::solver::math::vec3::Vec3;
 use crate::solver::parallel::in_bands;
 
 use super::dot_slices;
-use super::grid_operator::{Field, GridOperator, JACOBI_DAMPING, PARALLEL_PARTICLES, zero_field};
+use super::grid_operator::{Field, GridOperator, JACOBI_DAMPING, PARALLEL_PARTICLES};
 use super::level_bending::LevelBending;
 use super::multigrid::parents;
 
@@ -86,10 +86,7 @@ pub(crate) struct BlockStencil<T> {
     pub pinned: Vec<usize>,
     /// Whether products and smoothing are split over the pool's threads.
     parallel: bool,
-    /// The power iteration's vector, kept between steps, and its product.
-    power: Field<T>,
-    power_product: Field<T>,
-    /// Whether `power` holds the last step's vector.
+    /// Whether the power iteration's vector holds the last step's.
     warm: bool,
     /// The smoother's damping `ω` of the last update.
     damping: f64,
@@ -109,8 +106,6 @@ impl<T: Real> BlockStencil<T> {
             smoother: Arrays::zeros(n),
             pinned,
             parallel: n >= PARALLEL_PARTICLES,
-            power: zero_field(n),
-            power_product: zero_field(n),
             warm: false,
             damping: MAX_DAMPING,
         }
@@ -341,8 +336,9 @@ impl<T: Real> BlockStencil<T> {
     }
 
     /// The smoother `ω D⁻¹` with `ω = min(0.9, 1.8 / λmax(D⁻¹ A))`, `λmax` by power iteration
-    /// (see the module docs).
-    pub fn update_smoother(&mut self) {
+    /// (see the module docs) from the vector `power`, which the level keeps between steps;
+    /// `product` is scratch.
+    pub fn update_smoother(&mut self, power: &mut Field<T>, product: &mut Field<T>) {
         let (nx, ny) = (self.nx, self.ny);
         let diagonal = self.diagonal.arrays();
         let piece = if self.parallel { 16 } else { ny };
@@ -354,7 +350,12 @@ impl<T: Real> BlockStencil<T> {
                 }
             }
         });
-        let largest = self.largest_eigenvalue();
+        let iterations = if self.warm { POWER_ITERATIONS } else { FIRST_POWER_ITERATIONS };
+        if !self.warm {
+            start_vector(power, &self.pinned);
+        }
+        let largest = self.largest_eigenvalue(power, product, iterations);
+        self.warm = largest.is_finite();
         self.damping = if largest.is_finite() && largest > 0.0 {
             MAX_DAMPING.min(DAMPED_RADIUS / largest)
         } else {
@@ -368,18 +369,13 @@ impl<T: Real> BlockStencil<T> {
         }
     }
 
-    /// The Rayleigh quotient `vᵀ A v / vᵀ D v` after a few power iterations `v ← D⁻¹ A v`, with
-    /// the smoother holding `D⁻¹`; `NaN` when there is nothing to iterate on.
-    fn largest_eigenvalue(&mut self) -> f64 {
-        let iterations = if self.warm { POWER_ITERATIONS } else { FIRST_POWER_ITERATIONS };
-        if !self.warm {
-            start_vector(&mut self.power, &self.pinned);
-        }
+    /// The Rayleigh quotient `vᵀ A v / vᵀ D v` after `iterations` power iterations
+    /// `v ← D⁻¹ A v` from `power`, with the smoother holding `D⁻¹`; `NaN` when there is nothing
+    /// to iterate on.
+    fn largest_eigenvalue(&self, power: &mut Field<T>, product: &mut Field<T>, iterations: usize) -> f64 {
         let mut largest = f64::NAN;
-        let mut power = std::mem::replace(&mut self.power, zero_field(0));
-        let mut product = std::mem::replace(&mut self.power_product, zero_field(0));
         for _ in 0..iterations {
-            self.apply(&power, &mut product);
+            self.apply(power, product);
             let along: f64 = (0..3).map(|a| dot_slices(&power[a], &product[a])).sum();
             let mut weight = 0.0;
             for p in 0..self.len() {
@@ -389,11 +385,11 @@ impl<T: Real> BlockStencil<T> {
             }
             largest = along / weight;
             // v ← D⁻¹ A v, scaled to unit length.
-            self.smooth_from_zero(&product, &mut power);
+            self.smooth_from_zero(product, power);
             let norm: f64 = (0..3).map(|a| dot_slices(&power[a], &power[a])).sum::<f64>().sqrt();
             if !(norm.is_finite() && norm > 0.0) {
-                start_vector(&mut power, &self.pinned);
-                break;
+                start_vector(power, &self.pinned);
+                return f64::NAN;
             }
             let scale = T::from_f64(1.0 / norm);
             for axis in power.iter_mut() {
@@ -402,9 +398,6 @@ impl<T: Real> BlockStencil<T> {
                 }
             }
         }
-        self.power = power;
-        self.power_product = product;
-        self.warm = largest.is_finite();
         largest
     }
 

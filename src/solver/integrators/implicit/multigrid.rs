@@ -46,13 +46,15 @@ use crate::solver::parallel::in_bands;
 /// The coarsest level has at most this many particles and is solved directly.
 pub(crate) const COARSEST_PARTICLES: usize = 16;
 
-/// A coarse level: its operator and the cycle's right-hand side, correction and residual.
+/// A coarse level: its operator, the cycle's right-hand side, correction and residual, and
+/// the power iteration's vector for its smoother's damping, kept between steps.
 #[derive(Debug)]
 struct Level<T> {
     operator: BlockStencil<T>,
     rhs: Field<T>,
     solution: Field<T>,
     residual: Field<T>,
+    power: Field<T>,
 }
 
 /// The hierarchy, its transfers and the coarsest level's dense factor.
@@ -109,6 +111,7 @@ impl<T: Real> Multigrid<T> {
                 rhs: zero_field(cx * cy),
                 solution: zero_field(cx * cy),
                 residual: zero_field(cx * cy),
+                power: zero_field(cx * cy),
             });
             (fx, fy, fine_pinned) = (cx, cy, pinned);
         }
@@ -170,9 +173,9 @@ impl<T: Real> Multigrid<T> {
         for l in 0..self.coarse.len() {
             let (finer, rest) = self.coarse.split_at_mut(l);
             let above = finer.last().map_or(&self.blocks, |level| &level.operator);
-            let level = &mut rest[0].operator;
-            level.fill_galerkin(above);
-            level.update_smoother();
+            let Level { operator, power, residual, .. } = &mut rest[0];
+            operator.fill_galerkin(above);
+            operator.update_smoother(power, residual);
         }
         match self.coarse.last() {
             Some(last) => self.coarsest.factor(&last.operator, &[], &self.filter),
