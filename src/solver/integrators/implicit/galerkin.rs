@@ -56,6 +56,12 @@ const DAMPED_RADIUS: f64 = 1.8;
 const FIRST_POWER_ITERATIONS: usize = 12;
 const POWER_ITERATIONS: usize = 3;
 
+/// Where a coarse block between a particle and one `[di, dj]` away is summed, at
+/// `dj * 5 + di + 2` for `dj` in 0..=2: 0 the diagonal, `s + 1` the slot `s` ahead, [`BEHIND`]
+/// a block behind.
+const SUMS_OF: [u8; 15] = [BEHIND, BEHIND, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12];
+const BEHIND: u8 = u8::MAX;
+
 /// A general 3×3 block, row-major.
 type Block<T> = [T; 9];
 
@@ -267,7 +273,10 @@ impl<T: Real> BlockStencil<T> {
         let (cx, cy, nx, ny) = (self.nx, self.ny, fine.nx, fine.ny);
         let band = self.band_rows();
         let fine_used = fine.used;
-        let (diagonal, couplings) = (fine.diagonal.arrays(), fine.couplings.arrays());
+        let diagonal = fine.diagonal.arrays();
+        let couplings = fine.couplings.arrays();
+        let blocks: [[&[T]; 9]; FORWARD] =
+            std::array::from_fn(|s| std::array::from_fn(|e| couplings[9 * s + e]));
         let rows = (self.diagonal.arrays_mut(), self.couplings.arrays_mut());
         in_bands(rows, cy, cx, band, &|first, count, (mut d, c)| {
             for cj in first..first + count {
@@ -277,20 +286,19 @@ impl<T: Real> BlockStencil<T> {
                     // (gi, gj), keeping the diagonal and the blocks ahead.
                     let mut spread = |block: &Block<T>, w: T, gi: usize, gj: usize| {
                         for (pj, wj) in parents::<T>(gj, cy) {
+                            // A parent on an earlier row is behind: its block is another's transpose.
+                            if wj == T::ZERO || pj < cj {
+                                continue;
+                            }
+                            let dj = pj - cj;
                             for (pi, wi) in parents::<T>(gi, cx) {
-                                if wi == T::ZERO || wj == T::ZERO {
+                                let di = pi as isize - ci as isize;
+                                let to = SUMS_OF[dj.min(2) * 5 + (di + 2).clamp(0, 4) as usize];
+                                if wi == T::ZERO || to == BEHIND || dj > 2 || di.abs() > 2 {
                                     continue;
                                 }
-                                let offset = [pi as isize - ci as isize, pj as isize - cj as isize];
-                                let to = if offset == [0, 0] {
-                                    0
-                                } else if let Some(s) = slot(offset) {
-                                    s + 1
-                                } else {
-                                    continue;
-                                };
                                 let w = w * wi * wj;
-                                for (sum, &a) in sums[to].iter_mut().zip(block) {
+                                for (sum, &a) in sums[to as usize].iter_mut().zip(block) {
                                     *sum += a * w;
                                 }
                             }
@@ -305,14 +313,12 @@ impl<T: Real> BlockStencil<T> {
                                 let [di, dj] = OFFSETS[s];
                                 let (gi, gj) = (fi as isize + di, fj as isize + dj);
                                 if (0..nx as isize).contains(&gi) && (gj as usize) < ny {
-                                    let block = std::array::from_fn(|e| couplings[9 * s + e][i]);
-                                    spread(&block, w, gi as usize, gj as usize);
+                                    spread(&blocks[s].map(|a| a[i]), w, gi as usize, gj as usize);
                                 }
                                 let (gi, gj) = (fi as isize - di, fj as isize - dj);
                                 if (0..nx as isize).contains(&gi) && gj >= 0 {
                                     let q = gj as usize * nx + gi as usize;
-                                    let block: Block<T> = std::array::from_fn(|e| couplings[9 * s + e][q]);
-                                    spread(&transpose(&block), w, gi as usize, gj as usize);
+                                    spread(&transpose(&blocks[s].map(|a| a[q])), w, gi as usize, gj as usize);
                                 }
                             }
                         }
