@@ -1,7 +1,7 @@
 //! Time to drape: how long a user waits for implicit Euler to bring a cloth to rest on a shape.
 //!
 //! ```sh
-//! cargo bench --bench time_to_drape [-- RUNS]
+//! cargo bench --bench time_to_drape [-- RUNS] [grid|mesh]
 //! ```
 //!
 //! Two scenes, each stepped at the frame interval (1/60 s) from release until every particle is
@@ -10,11 +10,11 @@
 //! - `grid 128²`: `examples/drape_sphere.json` at 128 × 128 particles, which takes the grid
 //!   solver (conjugate gradients preconditioned by the geometric multigrid);
 //! - `mesh 10k`: the same sheet as a 100 × 100-vertex triangle mesh body, which takes the
-//!   spring-list solver.
+//!   spring-list solver (conjugate gradients preconditioned by smoothed-aggregation multigrid).
 //!
-//! Each scene runs `RUNS` times (default 1: the grid run alone is long); the table gives the
-//! median wall time, the steps and simulated time to rest, and the conjugate-gradient iterations
-//! per step (mean and most). Iteration counts are deterministic; wall times are not.
+//! Each scene (or the one named) runs `RUNS` times (default 1: the grid run alone is long); the
+//! table gives the median wall time, the steps and simulated time to rest, and the
+//! conjugate-gradient iterations per step (mean and most). Iteration counts are deterministic; wall times are not.
 
 use std::time::{Duration, Instant};
 
@@ -98,12 +98,16 @@ fn run_to_rest(scene: &Value) -> Run {
 
 fn main() {
     let runs: usize = std::env::args().skip(1).find_map(|a| a.parse().ok()).unwrap_or(1).max(1);
+    let only = std::env::args().skip(1).find(|a| a == "grid" || a == "mesh");
     println!("time to drape at dt = 1/60 s, rest below {REST_SPEED} m/s, median of {runs} run(s)");
     println!(
         "{:<10} {:>9} {:>6} {:>9} {:>8} {:>10} {:>5}",
         "scene", "wall s", "steps", "sim s", "rest", "CG/step", "most"
     );
-    for (name, scene) in [("grid 128²", grid_scene()), ("mesh 10k", mesh_scene(100))] {
+    let scenes = [("grid 128²", grid_scene()), ("mesh 10k", mesh_scene(100))];
+    for (name, scene) in
+        scenes.into_iter().filter(|(name, _)| only.as_ref().is_none_or(|o| name.starts_with(o)))
+    {
         let mut all: Vec<Run> = (0..runs).map(|_| run_to_rest(&scene)).collect();
         all.sort_by_key(|r| r.wall);
         let r = &all[all.len() / 2];

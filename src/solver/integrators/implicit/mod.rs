@@ -14,8 +14,9 @@
 //! - a scene that is one grid cloth ([`grid_solver`]) stores the system as row stencils
 //!   ([`grid_operator`]) and preconditions with a geometric multigrid V-cycle ([`multigrid`]),
 //!   which converges in a handful of iterations however stiff the cloth;
-//! - any other spring graph ([`spring_list`]) applies the system from the spring list with a
-//!   block-Jacobi preconditioner.
+//! - any other spring graph ([`spring_list`]) applies the system from the spring list and
+//!   preconditions with a smoothed-aggregation algebraic multigrid V-cycle ([`aggregation`])
+//!   built from the spring graph.
 //!
 //! The step reads the state and evaluates the forces in one place at its start and writes the
 //! state in one place at its end; the solvers work on their own per-axis copies.
@@ -23,6 +24,8 @@
 //! Wind enters the right-hand side at the start of the step but not the matrix: it is weak next
 //! to the springs, and its derivative (through the moving normals) is neither symmetric nor cheap.
 
+mod aggregation;
+mod block_sparse;
 mod galerkin;
 mod grid_operator;
 mod grid_solver;
@@ -109,10 +112,12 @@ impl<T: Real> Implicit<T> {
         Self::with_solver(solver, dynamics, settings)
     }
 
-    /// The spring-list solver whatever the scene, to compare the two.
+    /// The spring-list solver preconditioned by block Jacobi whatever the scene, to compare
+    /// with.
     #[cfg(test)]
     fn with_spring_list(dynamics: &Dynamics<T>, settings: IntegratorSettings) -> Self {
-        Self::with_solver(Solver::SpringList(Box::new(SpringListSolver::new(dynamics))), dynamics, settings)
+        let solver = SpringListSolver::with_block_jacobi(dynamics);
+        Self::with_solver(Solver::SpringList(Box::new(solver)), dynamics, settings)
     }
 
     fn with_solver(solver: Solver<T>, dynamics: &Dynamics<T>, settings: IntegratorSettings) -> Self {

@@ -1,12 +1,15 @@
 //! The implicit system of any spring graph, applied matrix-free from the spring list and solved
-//! by block-Jacobi preconditioned conjugate gradients.
+//! by conjugate gradients preconditioned with smoothed-aggregation multigrid.
 //!
 //! This is the general path: chains, lattices, meshes, several bodies, or a cloth joined to
 //! other springs. Each spring's block `S = h D + h² K` is built once per step and the product
-//! `A x = M x + Σ_s ±S (x_i - x_j)` streams through the spring list; the preconditioner is the
-//! inverse of each particle's diagonal block. Bending hinges add their constant
-//! `h D + h² C` (see [`hinges`](crate::solver::forces::bending)) to the product and its diagonal.
+//! `A x = M x + Σ_s ±S (x_i - x_j)` streams through the spring list. Bending hinges add their
+//! constant `h D + h² C` (see [`hinges`](crate::solver::forces::bending)) to the product. The
+//! preconditioner is a V-cycle of the [`aggregation`](super::aggregation) hierarchy built from
+//! the spring graph and refilled from the step's blocks; the inverse of each particle's diagonal
+//! block (block Jacobi) is kept to compare with.
 
+use super::aggregation::{Aggregation, FineSystem};
 use super::grid_operator::Field;
 use super::{SolveOutcome, StepInput};
 use crate::solver::forces::dynamics::Dynamics;
@@ -21,7 +24,9 @@ use crate::solver::math::vec3::Vec3;
 pub(crate) struct SpringListSolver<T> {
     /// Per spring: `h D + h² K`.
     blocks: Vec<Sym3<T>>,
-    /// Per particle: inverse of the diagonal block of the system (the preconditioner).
+    /// The preconditioner; block Jacobi (`preconditioner`) without it.
+    aggregation: Option<Box<Aggregation<T>>>,
+    /// Per particle: inverse of the diagonal block of the system.
     preconditioner: Vec<Sym3<T>>,
     /// Per particle: `m (1 + h · drag)`, the mass part of the diagonal.
     mass_diagonal: Vec<T>,
@@ -44,11 +49,26 @@ pub(crate) struct SpringListSolver<T> {
 
 impl<T: Real> SpringListSolver<T> {
     pub fn new(dynamics: &Dynamics<T>) -> Self {
+        Self::with_aggregation_depth(dynamics, usize::MAX)
+    }
+
+    /// The solver preconditioned by an aggregation hierarchy of at most `depth` levels (with
+    /// one, a symmetric block Gauss-Seidel sweep).
+    pub fn with_aggregation_depth(dynamics: &Dynamics<T>, depth: usize) -> Self {
+        let held: Vec<bool> = dynamics.inverse_masses.iter().map(|&w| w == T::ZERO).collect();
+        let aggregation =
+            Aggregation::with_depth(held.len(), &dynamics.springs, dynamics.bending.as_ref(), &held, depth);
+        Self { aggregation: Some(Box::new(aggregation)), ..Self::with_block_jacobi(dynamics) }
+    }
+
+    /// The solver preconditioned by block Jacobi.
+    pub fn with_block_jacobi(dynamics: &Dynamics<T>) -> Self {
         let n = dynamics.masses.len();
         let zeros = || vec![Vec3::ZERO; n];
         let free =
             dynamics.inverse_masses.iter().map(|&w| if w > T::ZERO { T::ONE } else { T::ZERO }).collect();
         Self {
+            aggregation: None,
             blocks: vec![Sym3::ZERO; dynamics.springs.len()],
             preconditioner: vec![Sym3::ZERO; n],
             mass_diagonal: vec![T::ZERO; n],
@@ -132,6 +152,12 @@ impl<T: Real> SpringListSolver<T> {
             self.rhs[p] *= self.free[p];
             self.delta_v[p] *= self.free[p];
         }
+        if let Some(aggregation) = &mut self.aggregation {
+            let bending = dynamics.bending.as_ref().map(|hinges| (hinges, h2, h));
+            let system =
+                FineSystem { mass_diagonal: &self.mass_diagonal, spring_blocks: &self.blocks, bending };
+            aggregation.refill(&system, None);
+        }
     }
 
     /// `product = A search`, filtered.
@@ -206,6 +232,10 @@ impl<T: Real> SpringListSolver<T> {
     }
 
     fn precondition(&mut self) {
+        if let Some(aggregation) = &mut self.aggregation {
+            aggregation.apply(&self.residual, &mut self.preconditioned);
+            return;
+        }
         for ((z, r), m) in self.preconditioned.iter_mut().zip(&self.residual).zip(&self.preconditioner) {
             *z = m.apply(*r);
         }

@@ -6,7 +6,7 @@
 use glam::DVec3;
 
 use super::*;
-use crate::solver::bodies::{Cloth, Orientation};
+use crate::solver::bodies::{Cloth, Mesh, Orientation};
 use crate::solver::constraints::contacts::{Collider, Shape};
 use crate::solver::fabric::Fabric;
 use crate::solver::integrators::IntegratorKind;
@@ -14,6 +14,11 @@ use crate::solver::math::vec3::Vec3;
 use crate::solver::model::{Model, SpringParams};
 use crate::solver::simulation::{Config, Simulation};
 use crate::solver::state::State;
+
+/// The most iterations a solve of the 30² mesh drape takes with the aggregation V-cycle, warm
+/// (in the run) and cold (from zero): 34 and 31 as measured, with room for rounding.
+const AGGREGATION_MOST: usize = 36;
+const AGGREGATION_COLD: usize = 33;
 
 /// The performance peers' hanging cloth at `n × n`: 1 m², 1 kg, every spring at k = 5000 N/m and
 /// damping 0.5 N·s/m, two corners pinned, with its drag `0.01 n²` 1/s.
@@ -280,4 +285,140 @@ fn a_drape_in_contact_at_frame_steps_converges_within_a_bounded_count() {
     let stats = simulation.linear_solve_stats().expect("implicit Euler reports its solves");
     assert_eq!(stats.unconverged_solves, 0, "{stats:?}");
     assert!(stats.total_iterations <= 60 * 45 && stats.most_iterations <= 70, "{stats:?}");
+}
+
+/// `time_to_drape`'s `mesh 10k` sheet at `n × n` vertices: 1 m² of triangles, 0.4 kg, 1 m up,
+/// with the springs of `drape_sphere.json` (structural along the edges, bending across them),
+/// and that scene's sphere, floor and drag, stepped by implicit Euler at 1/60 s.
+fn mesh_drape(n: usize) -> (Model, Config) {
+    let mut vertices = Vec::new();
+    for j in 0..n {
+        for i in 0..n {
+            let (u, w) = (i as f64 / (n - 1) as f64 - 0.5, j as f64 / (n - 1) as f64 - 0.5);
+            vertices.push(DVec3::new(u, 1.0, w));
+        }
+    }
+    let mut triangles = Vec::new();
+    for j in 0..n - 1 {
+        for i in 0..n - 1 {
+            let a = j * n + i;
+            triangles.extend([[a, a + n, a + 1], [a + 1, a + n, a + n + 1]]);
+        }
+    }
+    let mut model = Model::default();
+    model.add_mesh(&Mesh {
+        vertices,
+        triangles,
+        mass: 0.4,
+        velocity: DVec3::ZERO,
+        structural: SpringParams { stiffness: 2000.0, damping: 2.0 },
+        bending: SpringParams { stiffness: 20.0, damping: 0.02 },
+        pins: vec![],
+    });
+    let collider = |shape| Collider { shape, friction: 0.5, restitution: 0.0, motion: None };
+    let config = Config {
+        integrator: IntegratorKind::ImplicitEuler,
+        dt: 1.0 / 60.0,
+        drag: 0.2,
+        colliders: vec![
+            collider(Shape::Sphere { center: DVec3::new(0.0, 0.5, 0.0), radius: 0.3 }),
+            collider(Shape::Plane { point: DVec3::ZERO, normal: DVec3::Y }),
+        ],
+        ..Config::default()
+    };
+    (model, config)
+}
+
+/// The 30² mesh sheet falls onto the sphere at 1/60 s and drapes over it: every solve of the
+/// aggregation-preconditioned spring-list path converges within a few tens of iterations. Then,
+/// from the draped state, one cold-started solve with the V-cycle and one with block Jacobi:
+/// block Jacobi takes many times the iterations, and tight solves of both give the same step.
+#[test]
+fn aggregation_solves_a_mesh_in_contact_in_a_fraction_of_block_jacobis_iterations() {
+    let (model, config) = mesh_drape(30);
+    let mut simulation = Simulation::<f64>::new(&model, &config);
+    for _ in 0..45 {
+        simulation.step().expect("the drape is stable");
+    }
+    let stats = simulation.linear_solve_stats().expect("implicit Euler");
+    assert_eq!(stats.unconverged_solves, 0, "{stats:?}");
+    assert!(stats.most_iterations <= AGGREGATION_MOST, "{stats:?}");
+    let state = simulation.state().clone();
+    let in_contact =
+        state.positions.iter().filter(|x| (x.to_dvec3() - DVec3::new(0.0, 0.5, 0.0)).length() < 0.31).count();
+    assert!(in_contact >= 50, "{in_contact} particles on the sphere");
+
+    let mut dynamics = Dynamics::new(&model, config.gravity, config.drag);
+    let solve = |implicit: &mut Implicit<f64>, dynamics: &mut Dynamics<f64>| {
+        let mut after = state.clone();
+        implicit.step(&mut after, dynamics, 0.0, config.dt).expect("nothing interrupts it");
+        assert_eq!(implicit.stats().unconverged_solves, 0);
+        (after, implicit.stats().last_iterations)
+    };
+    let mut aggregation = Implicit::new(&dynamics, settings(1e-6, 1000));
+    assert!(matches!(aggregation.solver, Solver::SpringList(_)));
+    let mut jacobi = Implicit::with_spring_list(&dynamics, settings(1e-6, 10_000));
+    let (_, with_aggregation) = solve(&mut aggregation, &mut dynamics);
+    let (_, with_jacobi) = solve(&mut jacobi, &mut dynamics);
+    assert!(with_aggregation <= AGGREGATION_COLD, "the V-cycle took {with_aggregation}");
+    assert!(
+        with_jacobi >= 8 * with_aggregation,
+        "block Jacobi took {with_jacobi}, the V-cycle {with_aggregation}"
+    );
+
+    let (a, _) = solve(&mut Implicit::new(&dynamics, settings(1e-11, 1000)), &mut dynamics);
+    let (b, _) = solve(&mut Implicit::with_spring_list(&dynamics, settings(1e-12, 100_000)), &mut dynamics);
+    let largest = state
+        .velocities
+        .iter()
+        .zip(b.velocities.iter())
+        .map(|(v0, v1)| (v1 - v0).length())
+        .fold(0.0, f64::max);
+    let difference =
+        a.velocities.iter().zip(b.velocities.iter()).map(|(u, v)| (u - v).length()).fold(0.0, f64::max);
+    assert!(largest > 1e-3, "the step changes the velocities ({largest})");
+    assert!(difference <= 1e-8 * largest, "Δv differs by {difference} of {largest}");
+}
+
+/// Iterations of a cold-started solve to 1e-6 of the step from `state`, by the spring-list solver
+/// with block Jacobi, with a symmetric block Gauss-Seidel sweep, and with the aggregation
+/// V-cycle.
+fn single_system_iterations(model: &Model, config: &Config, state: &State<f64>) -> [usize; 3] {
+    let mut dynamics = Dynamics::new(model, config.gravity, config.drag);
+    let solvers = [
+        SpringListSolver::with_block_jacobi(&dynamics),
+        SpringListSolver::with_aggregation_depth(&dynamics, 1),
+        SpringListSolver::new(&dynamics),
+    ];
+    solvers.map(|solver| {
+        let mut implicit =
+            Implicit::with_solver(Solver::SpringList(Box::new(solver)), &dynamics, settings(1e-6, 100_000));
+        let mut after = state.clone();
+        implicit.step(&mut after, &mut dynamics, 0.0, config.dt).expect("nothing interrupts it");
+        assert_eq!(implicit.stats().unconverged_solves, 0);
+        implicit.stats().last_iterations
+    })
+}
+
+/// The 10,000-vertex mesh drape of `time_to_drape` at four moments of its fall and drape: each
+/// step's system solved cold by the three preconditioners. The V-cycle stays within the issue's
+/// 40 iterations where block Jacobi takes hundreds.
+#[test]
+#[ignore = "long: steps the 10,000-vertex drape for 2.5 s and solves its systems by block Jacobi"]
+fn the_mesh_drapes_systems_by_each_preconditioner() {
+    let (model, config) = mesh_drape(100);
+    let mut simulation = Simulation::<f64>::new(&model, &config);
+    println!("t (s) | block Jacobi | symmetric Gauss-Seidel | aggregation V-cycle");
+    for steps in [30, 48, 90, 150] {
+        while simulation.steps_taken() < steps {
+            simulation.step().expect("the drape is stable");
+        }
+        let [jacobi, gauss_seidel, cycle] = single_system_iterations(&model, &config, simulation.state());
+        println!("{:.2} | {jacobi} | {gauss_seidel} | {cycle}", steps as f64 / 60.0);
+        assert!(
+            cycle <= 40 && cycle * 10 <= jacobi && cycle < gauss_seidel,
+            "{jacobi}, {gauss_seidel}, {cycle}"
+        );
+    }
+    println!("{:?}", simulation.linear_solve_stats());
 }
