@@ -145,6 +145,10 @@ impl<T: Real> MeshShape<T> {
             end = start + d * s + normal * self.thickness;
             crossed = Some(Surface { point: end, normal });
         }
+        if let Some(Kept { over_face: true, .. }) = kept {
+            let nearest = self.bvh.over_face(slots[0], end, self.thickness);
+            return nearest.and_then(|near| self.pushed_out(end, &near, Some(start)));
+        }
         // A stop at a crossing can leave the kept triangles' reach: those near it are gathered.
         let near = match (kept, nearby) {
             (Some(Kept { count, .. }), _) if crossed.is_none() => Some(count),

@@ -1,6 +1,6 @@
 //! The common case of a mesh contact, a block of particles at a time in vector lanes: a particle
 //! resting on the mesh, whose path crosses no triangle and ends over the face of its anchor's
-//! nearest triangle (the one-triangle case of
+//! nearest triangle, or of a neighbour in its plane (the one-triangle case of
 //! [`NearbyTriangles`](super::nearby_triangles::NearbyTriangles)).
 //!
 //! For such a particle the whole contact of [`MeshShape::contact`] is its height over that

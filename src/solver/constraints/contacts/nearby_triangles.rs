@@ -21,6 +21,13 @@
 //! inside the edges of that triangle, so that such an end lies over its face: its nearest point
 //! is straight below it, which a block of particles finds side by side ([`mesh_lanes`]).
 //!
+//! Triangles in the nearest one's plane (a flat part of the mesh cut into triangles, within
+//! rounding) give an end over any of them the same nearest point, its foot on that plane: they
+//! do not count as the next nearest, and the end is held within the flat region they make
+//! together rather than within the one triangle. A particle resting over an edge between two
+//! such triangles is then answered as one over a face, where the two would otherwise be equally
+//! near.
+//!
 //! Each particle's entries are read and written only by the band of particles that holds it:
 //! relaxed atomics (plain loads and stores) let the bands share the arrays without cutting them.
 //! Each value has its own array, so that a block of consecutive particles reads each from
@@ -55,6 +62,8 @@ pub(super) struct Kept {
     pub count: usize,
     /// Whether the path stays nearer to the anchor than any triangle is, so that it crosses none.
     pub clear: bool,
+    /// Whether the end's nearest point is its foot on the plane of the one slot copied.
+    pub over_face: bool,
 }
 
 /// The triangles near each particle, by their slots in the hierarchy's leaf order.
@@ -66,7 +75,7 @@ pub(super) struct NearbyTriangles {
     /// path crosses nothing.
     clear: Vec<AtomicU32>,
     /// Per particle, as `f32` bits: the square of the distance from its anchor within which its
-    /// end's nearest point is straight below it on the anchor's nearest triangle; zero when
+    /// end's nearest point is its foot on the plane of the anchor's nearest triangle; zero when
     /// nothing usable is gathered.
     settled: Vec<AtomicU32>,
     /// Per particle, the slot of its anchor's nearest triangle.
@@ -152,14 +161,14 @@ impl NearbyTriangles {
         let clear = from.max(to) < real(&self.clear[p]);
         if clear && count > 0 && to < real(&self.settled[p]) {
             slots[0] = self.nearest[p].load(Relaxed);
-            return Some(Kept { count: 1, clear });
+            return Some(Kept { count: 1, clear, over_face: true });
         }
         let count = count as usize;
         let kept = &self.slots[p * CAPACITY..p * CAPACITY + count];
         for (slot, kept) in slots.iter_mut().zip(kept) {
             *slot = kept.load(Relaxed);
         }
-        Some(Kept { count, clear })
+        Some(Kept { count, clear, over_face: false })
     }
 
     /// Gathers the triangles of `bvh` within `reach` of `at` for particle `p`, and copies them
@@ -202,18 +211,24 @@ impl NearbyTriangles {
     /// within `reach` of it (every triangle nearer than `reach`).
     fn bound<T: Real>(&self, p: usize, bvh: &TriangleBvh<T>, slots: &[u32], reach: T) {
         let anchor = self.anchor::<T>(p);
-        let (mut nearest, mut first, mut second) = (0, reach, reach);
+        let distance = |slot: u32| bvh.distance_squared(slot, anchor).sqrt();
+        let (mut nearest, mut first) = (0, reach);
         for &slot in slots {
-            let distance = bvh.distance_squared(slot, anchor).sqrt();
+            let distance = distance(slot);
             if distance < first {
-                (nearest, first, second) = (slot, distance, first);
-            } else if distance < second {
-                second = distance;
+                (nearest, first) = (slot, distance);
             }
         }
+        // The triangles in the nearest one's plane give the same nearest point over their
+        // faces: the next nearest that counts is the nearest of the others.
+        let second = slots
+            .iter()
+            .filter(|&&slot| slot != nearest && !bvh.same_plane(slot, nearest))
+            .map(|&slot| distance(slot))
+            .fold(reach, T::min);
         let safety = T::from_f64(SAFETY);
         let clear = first * safety;
-        let over_face = if slots.is_empty() { T::ZERO } else { bvh.inner_margin(nearest, anchor) };
+        let over_face = if slots.is_empty() { T::ZERO } else { bvh.flat_margin(slots, nearest, anchor) };
         let settled = ((second - first) * T::from_f64(0.5)).min(over_face).max(T::ZERO) * safety;
         let bits = |x: T| (x.to_f64() as f32).to_bits();
         self.clear[p].store(bits(clear * clear), Relaxed);

@@ -91,6 +91,11 @@ pub(crate) fn crossing<T: Real>([a, b, c]: [Vec3<T>; 3], start: Vec3<T>, d: Vec3
 /// more than the rounding of `f32`.
 const HEIGHT_SLACK: f64 = 1e-5;
 
+/// How far, relative to the size of the coordinates involved, a triangle's corners may be from
+/// another's plane for the two to count as lying in one plane: a few roundings of `f32`, the
+/// differences between the planes computed for triangles cut from one flat face.
+const PLANE_SLACK: f64 = 1e-6;
+
 /// A triangle's plane and the planes through its edges square to it, computed once, so that
 /// most triangles are ruled out of a query, or answered, by a few dot products: a point's
 /// height over the plane bounds its distance, and a point over the inside of every edge has its
@@ -154,12 +159,37 @@ impl<T: Real> TrianglePlanes<T> {
     /// this lies over the face, so that [`nearest`](Self::nearest) puts its nearest point straight
     /// below it. Negative when `p` is outside an edge or the triangle has no area.
     pub fn inner_margin(&self, p: Vec3<T>) -> T {
-        let size = p.x.abs() + p.y.abs() + p.z.abs();
-        let slack = self.slack + T::from_f64(HEIGHT_SLACK) * size;
-        let inside = (0..3)
-            .map(|k| self.edge_normals[k].dot(p) - self.edge_offsets[k])
-            .fold(T::from_f64(f64::INFINITY), T::min);
-        inside - slack
+        let inside = self.inside_edges(p).into_iter().fold(T::from_f64(f64::INFINITY), T::min);
+        inside - self.rounding(p)
+    }
+
+    /// How far `p` is inside each edge's line, measured in the plane (negative outside it).
+    pub fn inside_edges(&self, p: Vec3<T>) -> [T; 3] {
+        [0, 1, 2].map(|k| self.edge_normals[k].dot(p) - self.edge_offsets[k])
+    }
+
+    /// How far a distance computed from `p` by these planes may be off; infinite for a triangle
+    /// of no area.
+    pub fn rounding(&self, p: Vec3<T>) -> T {
+        self.slack + T::from_f64(HEIGHT_SLACK) * (p.x.abs() + p.y.abs() + p.z.abs())
+    }
+
+    /// Whether the triangle `other` with corners `corners` lies in this triangle's plane, wound
+    /// the same way: every corner within [`PLANE_SLACK`] of the plane (both having area). A point
+    /// over `other` is then as far from it as from this plane, but for that slack.
+    pub fn same_plane(&self, other: &Self, corners: [Vec3<T>; 3]) -> bool {
+        let slack = self.slack.max(other.slack) * T::from_f64(PLANE_SLACK / HEIGHT_SLACK);
+        slack.is_finite()
+            && self.normal.dot(other.normal) > T::ZERO
+            && corners.iter().all(|&corner| self.height(corner).abs() <= slack)
+    }
+
+    /// The foot of `p` on the plane, as [`nearest`](Self::nearest) gives it for a point over the
+    /// face, with its squared distance, unless that is farther than `bound` (a squared distance).
+    #[inline(always)]
+    pub fn foot(&self, p: Vec3<T>, bound: T) -> Option<(Vec3<T>, T)> {
+        let height = self.height(p);
+        (height * height <= bound).then(|| (p - self.normal * height, height * height))
     }
 
     /// Whether the segment from `start` to `end` stays, with room to spare for rounding, on one

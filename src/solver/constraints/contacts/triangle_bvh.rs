@@ -150,10 +150,62 @@ impl<T: Real> TriangleBvh<T> {
         self.planes[slot as usize].plane()
     }
 
-    /// How far `p` is inside the edges of the triangle in `slot` (see
-    /// [`TrianglePlanes::inner_margin`]).
-    pub(crate) fn inner_margin(&self, slot: u32, p: Vec3<T>) -> T {
-        self.planes[slot as usize].inner_margin(p)
+    /// Whether the triangle in slot `b` lies in the plane of the one in slot `a` (see
+    /// [`TrianglePlanes::same_plane`]).
+    pub(crate) fn same_plane(&self, a: u32, b: u32) -> bool {
+        self.planes[a as usize].same_plane(&self.planes[b as usize], self.corners[b as usize])
+    }
+
+    /// How far the foot of `p` on the plane of the triangle in `slot` is inside the flat region
+    /// that triangle makes with those of `slots` in its plane (see
+    /// [`same_plane`](Self::same_plane)), less what rounding can take: an end whose foot is
+    /// nearer than this to `p`'s has its foot in that region, so that its nearest point on these
+    /// triangles is its foot ([`over_face`](Self::over_face)). Negative when `p`'s foot is
+    /// outside the region. With no such neighbour, the
+    /// [`inner_margin`](TrianglePlanes::inner_margin) of the triangle alone.
+    ///
+    /// The region's border is made of the edges no other triangle of it runs along the other way
+    /// (neighbours in one plane, wound alike, run along their shared edge in opposite
+    /// directions): the margin is the distance from the foot to the nearest of those edges.
+    pub(crate) fn flat_margin(&self, slots: &[u32], slot: u32, p: Vec3<T>) -> T {
+        let plane = &self.planes[slot as usize];
+        let neighbour = |&other: &u32| other != slot && self.same_plane(slot, other);
+        if !slots.iter().any(neighbour) {
+            return plane.inner_margin(p);
+        }
+        let (normal, offset) = plane.plane();
+        let foot = p - normal * (normal.dot(p) - offset);
+        let region = || std::iter::once(slot).chain(slots.iter().copied().filter(neighbour));
+        let (mut contained, mut margin) = (false, T::from_f64(f64::INFINITY));
+        for t in region() {
+            let (corners, planes) = (self.corners[t as usize], &self.planes[t as usize]);
+            let rounding = planes.rounding(p);
+            let inside = planes.inside_edges(foot).into_iter().fold(T::from_f64(f64::INFINITY), T::min);
+            contained |= inside >= -rounding;
+            for k in 0..3 {
+                let (from, to) = (corners[k], corners[(k + 1) % 3]);
+                let shared = region().any(|u| {
+                    let other = self.corners[u as usize];
+                    u != t && (0..3).any(|j| other[j] == to && other[(j + 1) % 3] == from)
+                });
+                if !shared {
+                    // The foot may be off by a rounding, and so may the edge's own points.
+                    let distance = segment_distance(from, to, foot);
+                    margin = margin.min(distance - rounding * T::from_f64(3.0));
+                }
+            }
+        }
+        if contained { margin } else { T::from_f64(f64::NEG_INFINITY) }
+    }
+
+    /// The nearest point to `p` of the triangle in `slot`, when `p` is known to lie over the
+    /// flat region of [`flat_margin`](Self::flat_margin): its foot on the plane, unless that is
+    /// farther than `radius`. For a point over the triangle's own face, what
+    /// [`nearest_among`](Self::nearest_among) gives for that triangle alone.
+    pub(crate) fn over_face(&self, slot: u32, p: Vec3<T>, radius: T) -> Option<Nearest<T>> {
+        let (point, distance_squared) = self.planes[slot as usize].foot(p, radius * radius)?;
+        let triangle = self.order[slot as usize] as usize;
+        Some(Nearest { triangle, point, feature: Feature::Face, distance_squared })
     }
 
     /// The index, in the order given, of the triangle in `slot`.
@@ -350,6 +402,14 @@ impl<T: Real> Builder<'_, T> {
 fn extend<T: Real>(lower: &mut Vec3<T>, upper: &mut Vec3<T>, p: Vec3<T>) {
     *lower = Vec3::new(lower.x.min(p.x), lower.y.min(p.y), lower.z.min(p.z));
     *upper = Vec3::new(upper.x.max(p.x), upper.y.max(p.y), upper.z.max(p.z));
+}
+
+/// The distance from `p` to the segment from `a` to `b`.
+fn segment_distance<T: Real>(a: Vec3<T>, b: Vec3<T>, p: Vec3<T>) -> T {
+    let along = b - a;
+    let length_squared = along.length_squared();
+    let s = if length_squared > T::ZERO { (p - a).dot(along) / length_squared } else { T::ZERO };
+    (p - (a + along * s.max(T::ZERO).min(T::ONE))).length()
 }
 
 /// Squared distance from `p` to the box; zero inside it.
