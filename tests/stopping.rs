@@ -1,7 +1,8 @@
-//! Every job stops when asked, through the real `drape serve`: a job stuck in a linear solve
-//! that never converges is cancelled, failed at its wall time, and handed back on SIGTERM within
-//! about a second; a job that kills the server each time it runs is failed after
-//! `--max-attempts` starts, and the server stays up.
+//! Every job stops when asked, through the real `drape serve`: a long job is cancelled, failed
+//! at its wall time, and handed back on SIGTERM within about a second, whichever of its steps
+//! it is in; a job that kills the server each time it runs is failed after `--max-attempts`
+//! starts, and the server stays up. That a stop reaches inside a single linear solve, however
+//! long, is shown on the solver itself (`src/run/tests.rs`).
 
 #![cfg(unix)]
 
@@ -14,20 +15,20 @@ use serde_json::Value;
 use serve::{PATIENCE, Server, ended, job, submit, wait_for};
 
 /// A stiff chain of 100,000 particles, the most a scene may have, whose every implicit solve
-/// goes down to 10⁻¹², the finest tolerance a scene may ask for, with room for 10,000 iterations:
-/// each step sets up the preconditioner's hierarchy of the whole chain and runs the V-cycle over
-/// it tens of times, so the first step outlasts the waits below and the 200 steps any test.
+/// goes down to 10⁻¹², the finest tolerance a scene may ask for: each of its 200 steps sets up
+/// the preconditioner's hierarchy of the whole chain and runs tens of V-cycles over it, so that
+/// the run outlasts any test on any machine while no single step outlasts a stop's deadline.
 const ENDLESS: &str = r#"{"duration": 1, "dt": 0.005, "integrator": "implicit_euler",
     "solver": {"tolerance": 1e-12, "max_iterations": 10000},
     "bodies": [{"type": "chain", "count": 100000, "start": [0, 0, 0], "end": [100, 0, 0], "pin": [0],
                 "mass": 0.1, "spring": {"k": 100000, "damping": 0.1, "rest_length": 0.0005}}],
     "error_estimate": "none", "output": {"frames": "none"}}"#;
 
-/// The same chain at 20,000 particles over 10 steps: seconds in all, long enough to be stopped in
-/// the middle and short enough to run to its end.
-const SLOW: &str = r#"{"duration": 0.05, "dt": 0.005, "integrator": "implicit_euler",
-    "solver": {"tolerance": 1e-12, "max_iterations": 1000},
-    "bodies": [{"type": "chain", "count": 20000, "start": [0, 0, 0], "end": [20, 0, 0], "pin": [0],
+/// The same chain over 20 steps: long enough to be stopped in the middle on a fast machine, and
+/// short enough to run to its end.
+const SLOW: &str = r#"{"duration": 0.1, "dt": 0.005, "integrator": "implicit_euler",
+    "solver": {"tolerance": 1e-12, "max_iterations": 10000},
+    "bodies": [{"type": "chain", "count": 100000, "start": [0, 0, 0], "end": [100, 0, 0], "pin": [0],
                 "mass": 0.1, "spring": {"k": 100000, "damping": 0.1, "rest_length": 0.0005}}],
     "error_estimate": "none", "output": {"frames": "final"}}"#;
 
@@ -43,16 +44,12 @@ fn running(job: &Value) -> bool {
     job["status"] == "running"
 }
 
-/// Waits until the job has been in its first solve for a while.
-async fn stuck_in_a_solve(client: &reqwest::Client, base: &str, id: &str) {
+/// Waits until the job has been running for a while.
+async fn running_for_a_while(client: &reqwest::Client, base: &str, id: &str) {
     wait_for(client, base, id, running).await;
     tokio::time::sleep(Duration::from_millis(500)).await;
     let job = job(client, base, id).await;
-    assert_eq!(
-        (job["status"].as_str(), job["progress"]["step"].as_u64()),
-        (Some("running"), Some(0)),
-        "{job}"
-    );
+    assert_eq!(job["status"], "running", "{job}");
 }
 
 /// Polls until the job ends; returns it and how long that took from `since`.
@@ -69,12 +66,12 @@ async fn ended_after(client: &reqwest::Client, base: &str, id: &str, since: Inst
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn a_cancel_stops_a_job_inside_an_endless_linear_solve() {
+async fn a_cancel_stops_a_long_job_within_a_second() {
     let dir = tempfile::tempdir().unwrap();
     let server = Server::start(dir.path(), "memory", &["--workers", "1"]);
     let client = reqwest::Client::new();
     let id = submit(&client, &server.base, ENDLESS).await;
-    stuck_in_a_solve(&client, &server.base, &id).await;
+    running_for_a_while(&client, &server.base, &id).await;
     let asked = Instant::now();
     let response = client.delete(format!("{}/jobs/{id}", server.base)).send().await.unwrap();
     assert_eq!(response.status(), 202);
@@ -90,7 +87,7 @@ async fn a_cancel_stops_a_job_inside_an_endless_linear_solve() {
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn the_wall_time_fails_a_job_inside_an_endless_linear_solve() {
+async fn the_wall_time_fails_a_long_job_where_it_is() {
     let dir = tempfile::tempdir().unwrap();
     let server = Server::start(dir.path(), "memory", &["--workers", "1", "--job-wall-time", "1"]);
     let client = reqwest::Client::new();
@@ -104,22 +101,24 @@ async fn the_wall_time_fails_a_job_inside_an_endless_linear_solve() {
         (Some("failed"), Some("wall_time")),
         "{job}"
     );
-    assert_eq!(
-        job["message"], "the job exceeded the wall-time limit of 1 s after 0 of 200 steps",
-        "stopped inside its first step"
-    );
+    let steps = job["message"]
+        .as_str()
+        .and_then(|m| m.strip_prefix("the job exceeded the wall-time limit of 1 s after "))
+        .and_then(|m| m.strip_suffix(" of 200 steps"))
+        .and_then(|steps| steps.parse::<u64>().ok());
+    assert!(steps.is_some_and(|steps| steps < 200), "stopped part way: {job}");
     let next = submit(&client, &server.base, TINY).await;
     assert_eq!(wait_for(&client, &server.base, &next, ended).await["status"], "succeeded");
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn sigterm_hands_a_job_back_from_inside_a_linear_solve_and_the_next_start_runs_it_to_its_end() {
+async fn sigterm_hands_a_running_job_back_and_the_next_start_runs_it_to_its_end() {
     let dir = tempfile::tempdir().unwrap();
     let store = "sqlite://jobs.db";
     let client = reqwest::Client::new();
     let first = Server::start(dir.path(), store, &["--workers", "1", "--shutdown-grace", "1"]);
     let slow = submit(&client, &first.base, SLOW).await;
-    stuck_in_a_solve(&client, &first.base, &slow).await;
+    running_for_a_while(&client, &first.base, &slow).await;
     let took = first.terminate_within(Duration::from_secs(1) + STOP_DEADLINE);
     eprintln!("exited {took:?} after SIGTERM with a grace of 1 s");
 
@@ -127,7 +126,7 @@ async fn sigterm_hands_a_job_back_from_inside_a_linear_solve_and_the_next_start_
     let job = wait_for(&client, &second.base, &slow, ended).await;
     assert_eq!(
         (job["status"].as_str(), job["progress"]["step"].as_u64(), job["attempts"].as_u64()),
-        (Some("succeeded"), Some(10), Some(1)),
+        (Some("succeeded"), Some(20), Some(1)),
         "run again from the start; a shutdown's hand-back is not an attempt: {job}"
     );
     assert_eq!(second.starts(), [slow]);
@@ -142,7 +141,7 @@ async fn a_job_that_kills_the_server_three_times_is_failed_on_the_fourth_start()
     let poison = submit(&client, &first.base, SLOW).await;
     let mut server = first;
     for attempt in 1..=3u64 {
-        stuck_in_a_solve(&client, &server.base, &poison).await;
+        running_for_a_while(&client, &server.base, &poison).await;
         assert_eq!(job(&client, &server.base, &poison).await["attempts"], attempt);
         server.kill();
         server = Server::start(dir.path(), store, &["--workers", "1"]);
@@ -166,7 +165,7 @@ async fn a_job_that_kills_the_server_three_times_is_failed_on_the_fourth_start()
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn simulate_calls_that_time_out_inside_endless_solves_free_their_workers() {
+async fn simulate_calls_that_time_out_inside_long_runs_free_their_workers() {
     let dir = tempfile::tempdir().unwrap();
     let server = Server::start(dir.path(), "memory", &["--workers", "2", "--request-timeout", "1"]);
     let client = reqwest::Client::new();
