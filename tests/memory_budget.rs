@@ -19,6 +19,10 @@ fn cloth(n: usize) -> Value {
     json!({"type": "cloth", "resolution": [n, n], "size": [1, 1]})
 }
 
+fn lattice(n: usize) -> Value {
+    json!({"type": "lattice", "resolution": [n, n, n], "size": [1, 1, 1], "pin": [[0, 0, 0]]})
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn the_server_stays_under_its_memory_budget_whatever_the_scenes() {
     const BUDGET: u64 = 1 << 30;
@@ -50,14 +54,20 @@ async fn the_server_stays_under_its_memory_budget_whatever_the_scenes() {
             json!({"duration": 0.2, "bodies": [cloth(100)], "output": {"fps": 1500, "fields": ["positions", "velocities"]}}),
             "/output/fps",
         ),
+        // Implicit Euler's hierarchy of a lattice's spring graph: about 500 MiB here.
+        (
+            json!({"duration": 0.01, "dt": 0.005, "integrator": "implicit_euler", "error_estimate": "none",
+                "bodies": [lattice(30)], "output": {"frames": "final"}}),
+            "/bodies/0/resolution",
+        ),
     ];
     for (scene, pointer) in refused {
         let (status, problem) = post("/jobs", scene).await;
         assert_eq!((status, problem["errors"][0]["pointer"].as_str()), (422, Some(pointer)), "{problem}");
     }
 
-    // Heavy but admissible, two at a time: implicit Euler on 90,000 particles, self-collision
-    // with millions of pairs, hundreds of recorded frames.
+    // Heavy but admissible, two at a time: implicit Euler on 90,000 particles and on a lattice
+    // of 13,824, self-collision with millions of pairs, hundreds of recorded frames.
     let admitted = [
         json!({"duration": 0.004, "dt": 0.002, "integrator": "implicit_euler", "error_estimate": "none",
                "bodies": [cloth(300)], "output": {"frames": "final"}}),
@@ -68,6 +78,8 @@ async fn the_server_stays_under_its_memory_budget_whatever_the_scenes() {
                "wind": {"model": "aerodynamic", "velocity": [3, 0, 0], "coefficient": 1},
                "bodies": [cloth(300)], "output": {"frames": "final"}}),
         json!({"duration": 0.2, "bodies": [cloth(100)], "output": {"fps": 600}}),
+        json!({"duration": 0.01, "dt": 0.005, "integrator": "implicit_euler", "error_estimate": "none",
+               "bodies": [lattice(24)], "output": {"frames": "final"}}),
     ];
     let mut ids = Vec::new();
     for scene in admitted {

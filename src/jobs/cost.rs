@@ -59,8 +59,18 @@ fn simulation_bytes_per_grid_spring(integrator: IntegratorName) -> u64 {
     }
 }
 /// Bytes a spring of any other body costs in a running simulation: the spring list, its sorted
-/// runs and their bands, and for implicit Euler the Jacobian blocks.
-const SIMULATION_BYTES_PER_LISTED_SPRING: u64 = 224;
+/// runs and their bands, and for implicit Euler the Jacobian blocks and the smoothed-aggregation
+/// hierarchy of the spring graph. The hierarchy's levels, prolongators and Galerkin products
+/// grow with how many neighbours a particle has within two springs, so the figure is the
+/// densest graph a scene may give: a lattice, whose springs reach 26 neighbours and bend across
+/// two, at the largest size `--max-springs` allows. A mesh with hinges, whose bending widens
+/// the graph the same way, stays under it.
+fn simulation_bytes_per_listed_spring(integrator: IntegratorName) -> u64 {
+    match integrator {
+        IntegratorName::ImplicitEuler => 2048,
+        _ => 224,
+    }
+}
 /// Bytes a collider costs: its scene document, its parsed and compiled forms and the stage's.
 const BYTES_PER_COLLIDER: u64 = 2048;
 /// Bytes a mesh collider's triangle costs: its scene numbers (parsed and compiled), its corners
@@ -144,7 +154,7 @@ impl Cost {
             .saturating_add(
                 (springs - listed).saturating_mul(simulation_bytes_per_grid_spring(scene.integrator)),
             )
-            .saturating_add(listed.saturating_mul(SIMULATION_BYTES_PER_LISTED_SPRING));
+            .saturating_add(listed.saturating_mul(simulation_bytes_per_listed_spring(scene.integrator)));
         let passes = match scene.integrator {
             IntegratorName::Rk4 => 4,
             IntegratorName::ImplicitEuler => IMPLICIT_PASSES,
