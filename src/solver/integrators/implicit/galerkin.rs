@@ -266,79 +266,207 @@ impl<T: Real> BlockStencil<T> {
     }
 
     /// This level as the Galerkin product `Pᵀ A P` of `fine`, the level above, with the rows,
-    /// columns and diagonal of this level's pinned particles zero. Each coarse block is summed
-    /// in one fixed order (the children of its row, each child's blocks, their parents), so the
-    /// bits do not depend on how the rows are split over the pool's threads.
-    pub fn fill_galerkin(&mut self, fine: &BlockStencil<T>) {
-        let (cx, cy, nx, ny) = (self.nx, self.ny, fine.nx, fine.ny);
+    /// columns and diagonal of this level's pinned particles zero. The bilinear `P` is the
+    /// product of an interpolation along y and one along x, so `Pᵀ A P` is taken one axis at a
+    /// time: `across` (the level above's width, this level's height) becomes `fine` coarsened
+    /// along y, and this level `across` coarsened along x. A pass gathers or scatters along one
+    /// axis the three children and two parents that the product in one pass would take along
+    /// both, and the pass along y runs over whole rows of blocks. Every block is summed in one
+    /// fixed order, so the bits do not depend on how the rows are split over the pool's threads.
+    /// `weights` are those of each fine column's parents (see [`parent_weights`]).
+    pub fn fill_galerkin(
+        &mut self,
+        fine: &BlockStencil<T>,
+        across: &mut BlockStencil<T>,
+        weights: &[Vec<T>; 2],
+    ) {
+        across.fill_coarsened_along_y(fine);
+        self.fill_coarsened_along_x(across, weights);
+        for k in 0..self.pinned.len() {
+            self.filter_particle(self.pinned[k], &[T::ZERO; 9]);
+        }
+    }
+
+    /// This level (as wide as `fine`) as `fine` coarsened along y: `Qᵀ A Q` with `Q` the
+    /// interpolation along y. Coarse row `cj` gathers, for each fine child row and each block
+    /// of that row (the diagonal, the blocks ahead and the transposes of those behind), the share
+    /// of the partner's row that coarse row `cj + dj` takes, one whole row of blocks at a time.
+    /// Blocks that land behind are skipped: their partners' rows hold their transposes.
+    fn fill_coarsened_along_y(&mut self, fine: &BlockStencil<T>) {
+        let (nx, cy, ny) = (self.nx, self.ny, fine.ny);
+        debug_assert_eq!(nx, fine.nx);
         let band = self.band_rows();
         let fine_used = fine.used;
         let diagonal = fine.diagonal.arrays();
         let couplings = fine.couplings.arrays();
-        let blocks: [[&[T]; 9]; FORWARD] =
+        let diagonal: [&[T]; 9] = AS_GENERAL.map(|e| diagonal[e]);
+        let ahead: [[&[T]; 9]; FORWARD] =
             std::array::from_fn(|s| std::array::from_fn(|e| couplings[9 * s + e]));
+        let behind: [[&[T]; 9]; FORWARD] = ahead.map(|b| TRANSPOSED.map(|e| b[e]));
         let rows = (self.diagonal.arrays_mut(), self.couplings.arrays_mut());
-        in_bands(rows, cy, cx, band, &|first, count, (mut d, c)| {
+        in_bands(rows, cy, nx, band, &|first, count, (mut d, mut c)| {
+            for run in d.iter_mut().chain(c.iter_mut()) {
+                run.fill(T::ZERO);
+            }
             for cj in first..first + count {
-                for ci in 0..cx {
-                    let mut sums = [[T::ZERO; 9]; FORWARD + 1];
-                    // Adds `w A[i, j]` to the blocks between (ci, cj) and the parents of fine
-                    // (gi, gj), keeping the diagonal and the blocks ahead.
-                    let mut spread = |block: &Block<T>, w: T, gi: usize, gj: usize| {
-                        for (pj, wj) in parents::<T>(gj, cy) {
-                            // A parent on an earlier row is behind: its block is another's transpose.
-                            if wj == T::ZERO || pj < cj {
-                                continue;
-                            }
-                            let dj = pj - cj;
-                            for (pi, wi) in parents::<T>(gi, cx) {
-                                let di = pi as isize - ci as isize;
-                                let to = SUMS_OF[dj.min(2) * 5 + (di + 2).clamp(0, 4) as usize];
-                                if wi == T::ZERO || to == BEHIND || dj > 2 || di.abs() > 2 {
-                                    continue;
-                                }
-                                let w = w * wi * wj;
-                                for (sum, &a) in sums[to as usize].iter_mut().zip(block) {
-                                    *sum += a * w;
-                                }
-                            }
+                let out = (cj - first) * nx;
+                // Adds `w` times the blocks `block[k]`, k in `from`, between fine (i, fj) and
+                // (i + di, gj), to the coarse blocks between (i, cj) and the parents of
+                // (i + di, gj), for the particles i from `columns.start`.
+                let mut spread = |block: &[&[T]; 9],
+                                  from: std::ops::Range<usize>,
+                                  first_column: usize,
+                                  w: T,
+                                  di: isize,
+                                  gj: usize| {
+                    for (pj, wp) in parents::<T>(gj, cy) {
+                        let dj = pj as isize - cj as isize;
+                        if wp == T::ZERO || !(0..=REACH).contains(&dj) {
+                            continue;
                         }
-                    };
-                    for (fj, wj) in children::<T>(cj, cy, ny) {
-                        for (fi, wi) in children::<T>(ci, cx, nx) {
-                            let (i, w) = (fj * nx + fi, wi * wj);
-                            let block = general(Sym3::from_entries(diagonal.map(|a| a[i])));
-                            spread(&block, w, fi, fj);
-                            for s in (0..FORWARD).filter(|&s| fine_used[s]) {
-                                let [di, dj] = OFFSETS[s];
-                                let (gi, gj) = (fi as isize + di, fj as isize + dj);
-                                if (0..nx as isize).contains(&gi) && (gj as usize) < ny {
-                                    spread(&blocks[s].map(|a| a[i]), w, gi as usize, gj as usize);
+                        let to = out + first_column..out + first_column + from.len();
+                        let w = w * wp;
+                        match SUMS_OF[(dj * 5 + di + 2) as usize] {
+                            BEHIND => {}
+                            0 => {
+                                for (run, e) in d.iter_mut().zip([0, 4, 8, 1, 2, 5]) {
+                                    add_scaled(&mut run[to.clone()], &block[e][from.clone()], w);
                                 }
-                                let (gi, gj) = (fi as isize - di, fj as isize - dj);
-                                if (0..nx as isize).contains(&gi) && gj >= 0 {
-                                    let q = gj as usize * nx + gi as usize;
-                                    spread(&transpose(&blocks[s].map(|a| a[q])), w, gi as usize, gj as usize);
+                            }
+                            sum => {
+                                let s = sum as usize - 1;
+                                for (e, run) in c[9 * s..9 * s + 9].iter_mut().enumerate() {
+                                    add_scaled(&mut run[to.clone()], &block[e][from.clone()], w);
                                 }
                             }
                         }
                     }
-                    let k = (cj - first) * cx + ci;
-                    let sum = sums[0];
-                    for (to, e) in d.iter_mut().zip([sum[0], sum[4], sum[8], sum[1], sum[2], sum[5]]) {
-                        to[k] = e;
-                    }
-                    for (s, sum) in sums[1..].iter().enumerate() {
-                        for (e, &value) in sum.iter().enumerate() {
-                            c[9 * s + e][k] = value;
+                };
+                for (fj, w) in children::<T>(cj, cy, ny) {
+                    let row = fj * nx;
+                    spread(&diagonal, row..row + nx, 0, w, 0, fj);
+                    for s in (0..FORWARD).filter(|&s| fine_used[s]) {
+                        let [di, dj] = OFFSETS[s];
+                        // Blocks ahead are zero where their partner is off the grid.
+                        if fj + (dj as usize) < ny {
+                            spread(&ahead[s], row..row + nx, 0, w, di, fj + dj as usize);
+                        }
+                        // The block between (i, fj) and (i - di, fj - dj), the transpose of the
+                        // one stored at its partner, for the i whose partner is on the grid.
+                        if let Some(gj) = fj.checked_sub(dj as usize) {
+                            let columns = di.max(0) as usize..(nx as isize + di.min(0)) as usize;
+                            let at = gj * nx + (columns.start as isize - di) as usize;
+                            spread(&behind[s], at..at + columns.len(), columns.start, w, -di, gj);
                         }
                     }
                 }
             }
         });
-        for k in 0..self.pinned.len() {
-            self.filter_particle(self.pinned[k], &[T::ZERO; 9]);
-        }
+    }
+
+    /// This level (as tall as `fine`) as `fine` coarsened along x, row by row: each fine block
+    /// of a row (the diagonal, the blocks ahead, and the transposes of those behind on the same
+    /// row) goes to the coarse blocks between its particle's parents and its partner's parents.
+    /// Fine column `i` has its first parent at `i / 2` and its second at `i / 2 + 1`, with the
+    /// weights `weights[0][i]` and `weights[1][i]` (see [`parent_weights`]); on the columns of
+    /// one parity, a block and a choice of the two parents land at one coarse offset, so each
+    /// such choice is one run over the row with a stride of two. Blocks that land behind are
+    /// skipped, as along y.
+    fn fill_coarsened_along_x(&mut self, fine: &BlockStencil<T>, weights: &[Vec<T>; 2]) {
+        let (cx, ny, nx) = (self.nx, self.ny, fine.nx);
+        debug_assert_eq!((ny, weights[0].len()), (fine.ny, nx));
+        let band = self.band_rows();
+        let fine_used = fine.used;
+        let diagonal = fine.diagonal.arrays();
+        let couplings = fine.couplings.arrays();
+        let diagonal: [&[T]; 9] = AS_GENERAL.map(|e| diagonal[e]);
+        let ahead: [[&[T]; 9]; FORWARD] =
+            std::array::from_fn(|s| std::array::from_fn(|e| couplings[9 * s + e]));
+        let behind: [[&[T]; 9]; FORWARD] = ahead.map(|b| TRANSPOSED.map(|e| b[e]));
+        let rows = (self.diagonal.arrays_mut(), self.couplings.arrays_mut());
+        in_bands(rows, ny, cx, band, &|first, count, (mut d, mut c)| {
+            for run in d.iter_mut().chain(c.iter_mut()) {
+                run.fill(T::ZERO);
+            }
+            for j in first..first + count {
+                let out = (j - first) * cx;
+                // Adds the blocks `block[row + i + shift]` between fine (i, j) and (i + di, j + dj),
+                // for the columns i in `columns`.
+                let mut spread = |block: &[&[T]; 9],
+                                  shift: isize,
+                                  columns: std::ops::Range<usize>,
+                                  di: isize,
+                                  dj: usize| {
+                    for parity in 0..2 {
+                        // Column i = 2m + parity; its partner's first parent is m + below.
+                        let below = (parity as isize + di).div_euclid(2);
+                        let partner_parity = (parity as isize + di).rem_euclid(2) as usize;
+                        let m_first = (columns.start + 1 - parity) / 2;
+                        let m_end = (columns.end + 1 - parity) / 2;
+                        // An even column is a coarse point: its second parent has weight zero.
+                        for own in 0..=parity {
+                            for other in 0..=partner_parity {
+                                let offset = below + other as isize - own as isize;
+                                let to = match SUMS_OF[dj * 5 + (offset + 2) as usize] {
+                                    BEHIND => continue,
+                                    0 => None,
+                                    sum => Some(sum as usize - 1),
+                                };
+                                let m_end = m_end.min(cx - own);
+                                if m_first >= m_end {
+                                    continue;
+                                }
+                                // The runs' weights, a chunk of columns at a time.
+                                let mut m = m_first;
+                                while m < m_end {
+                                    let len = (m_end - m).min(RUN_CHUNK);
+                                    let i = 2 * m + parity;
+                                    let mut w = [T::ZERO; RUN_CHUNK];
+                                    let wa = weights[own][i..].iter().step_by(2);
+                                    let wb = weights[other][(i as isize + di) as usize..].iter().step_by(2);
+                                    for ((w, &a), &b) in w[..len].iter_mut().zip(wa).zip(wb) {
+                                        *w = a * b;
+                                    }
+                                    let at = ((j * nx + i) as isize + shift) as usize;
+                                    let add = |run: &mut [T], from: &[T]| {
+                                        let run = &mut run[out + own + m..out + own + m + len];
+                                        let from = from[at..at + 2 * len - 1].iter().step_by(2);
+                                        for ((r, &f), &w) in run.iter_mut().zip(from).zip(&w[..len]) {
+                                            *r = f.mul_add(w, *r);
+                                        }
+                                    };
+                                    match to {
+                                        None => {
+                                            for (run, e) in d.iter_mut().zip([0, 4, 8, 1, 2, 5]) {
+                                                add(run, block[e]);
+                                            }
+                                        }
+                                        Some(s) => {
+                                            for (e, run) in c[9 * s..9 * s + 9].iter_mut().enumerate() {
+                                                add(run, block[e]);
+                                            }
+                                        }
+                                    }
+                                    m += len;
+                                }
+                            }
+                        }
+                    }
+                };
+                spread(&diagonal, 0, 0..nx, 0, 0);
+                for s in (0..FORWARD).filter(|&s| fine_used[s]) {
+                    let [di, dj] = OFFSETS[s];
+                    if j + (dj as usize) < ny {
+                        let columns = (-di).max(0) as usize..(nx as isize - di.max(0)) as usize;
+                        spread(&ahead[s], 0, columns, di, dj as usize);
+                    }
+                    // A partner behind on an earlier row lands behind.
+                    if dj == 0 {
+                        spread(&behind[s], -di, di as usize..nx, -di, 0);
+                    }
+                }
+            }
+        });
     }
 
     /// The smoother `ω D⁻¹` with `ω = min(0.9, 1.8 / λmax(D⁻¹ A))`, `λmax` by power iteration
@@ -516,6 +644,15 @@ pub(crate) fn held_smoother<T: Real>(system: &GridOperator<T>, p: usize, s: Sym3
     Sym3::from_entries(std::array::from_fn(|e| inverse[e] * omega + held[e] * (T::ONE - omega)))
 }
 
+/// The weights of the parents of each of `fine` points along an axis of `coarse`: of the first
+/// parent, at `i / 2`, and of the second, at `i / 2 + 1` (zero where a point has one parent).
+pub(crate) fn parent_weights<T: Real>(fine: usize, coarse: usize) -> [Vec<T>; 2] {
+    let parents = (0..fine).map(|i| (i, parents::<T>(i, coarse)));
+    let first = parents.clone().map(|(_, [(_, w), _])| w).collect();
+    let second = parents.map(|(i, [_, (p, w)])| if p == i / 2 + 1 { w } else { T::ZERO }).collect();
+    [first, second]
+}
+
 /// The fine points along an axis of `fine` points that take a share of coarse point `c` (of
 /// `coarse`), with their weights; absent ones have weight zero.
 fn children<T: Real>(c: usize, coarse: usize, fine: usize) -> impl Iterator<Item = (usize, T)> {
@@ -555,8 +692,21 @@ fn multiply<T: Real>(a: &Block<T>, b: &Block<T>) -> Block<T> {
     })
 }
 
-fn transpose<T: Real>(a: &Block<T>) -> Block<T> {
-    [a[0], a[3], a[6], a[1], a[4], a[7], a[2], a[5], a[8]]
+/// Columns whose weights a run of the pass along x computes at once.
+const RUN_CHUNK: usize = 64;
+
+/// Entry `e` of a symmetric block as a general one is entry `AS_GENERAL[e]` of its six.
+const AS_GENERAL: [usize; 9] = [0, 3, 4, 3, 1, 5, 4, 5, 2];
+
+/// Entry `e` of a block's transpose is entry `TRANSPOSED[e]` of the block.
+const TRANSPOSED: [usize; 9] = [0, 3, 6, 1, 4, 7, 2, 5, 8];
+
+/// `to += w from`, element by element.
+#[inline(always)]
+fn add_scaled<T: Real>(to: &mut [T], from: &[T], w: T) {
+    for (t, &f) in to.iter_mut().zip(from) {
+        *t = f.mul_add(w, *t);
+    }
 }
 
 /// `y = D x` (or `y += D x` with `ADD`) for a run of symmetric blocks `d`.

@@ -38,7 +38,7 @@ use crate::solver::math::sym3::Sym3;
 use crate::solver::math::vec3::Vec3;
 use std::any::Any;
 
-use super::galerkin::{BlockStencil, FORWARD, held_smoother, slot};
+use super::galerkin::{BlockStencil, FORWARD, held_smoother, parent_weights, slot};
 use super::grid_operator::{Family, Field, GridOperator, zero_field};
 use super::level_bending::{BendingMatrices, LevelBending};
 use crate::solver::parallel::in_bands;
@@ -46,11 +46,15 @@ use crate::solver::parallel::in_bands;
 /// The coarsest level has at most this many particles and is solved directly.
 pub(crate) const COARSEST_PARTICLES: usize = 16;
 
-/// A coarse level: its operator, the cycle's right-hand side, correction and residual, and
-/// the power iteration's vector for its smoother's damping, kept between steps.
+/// A coarse level: its operator, the level above coarsened along y alone (the first half of
+/// the Galerkin product), the cycle's right-hand side, correction and residual, and the power
+/// iteration's vector for its smoother's damping, kept between steps.
 #[derive(Debug)]
 struct Level<T> {
     operator: BlockStencil<T>,
+    across: BlockStencil<T>,
+    /// The weights of the parents of each column of the level above.
+    column_weights: [Vec<T>; 2],
     rhs: Field<T>,
     solution: Field<T>,
     residual: Field<T>,
@@ -106,8 +110,11 @@ impl<T: Real> Multigrid<T> {
             let (cx, cy) = (fx.div_ceil(2), fy.div_ceil(2));
             let pinned = coarse_pins(&fine_pinned, fx, cx, cy);
             let operator = BlockStencil::new(cx, cy, BlockStencil::<T>::coarse_slots(cx, cy), pinned.clone());
+            let across = BlockStencil::new(fx, cy, BlockStencil::<T>::coarse_slots(fx, cy), Vec::new());
             coarse.push(Level {
                 operator,
+                across,
+                column_weights: parent_weights(fx, cx),
                 rhs: zero_field(cx * cy),
                 solution: zero_field(cx * cy),
                 residual: zero_field(cx * cy),
@@ -173,8 +180,8 @@ impl<T: Real> Multigrid<T> {
         for l in 0..self.coarse.len() {
             let (finer, rest) = self.coarse.split_at_mut(l);
             let above = finer.last().map_or(&self.blocks, |level| &level.operator);
-            let Level { operator, power, residual, .. } = &mut rest[0];
-            operator.fill_galerkin(above);
+            let Level { operator, across, column_weights, power, residual, .. } = &mut rest[0];
+            operator.fill_galerkin(above, across, column_weights);
             operator.update_smoother(power, residual);
         }
         match self.coarse.last() {
