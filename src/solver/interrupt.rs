@@ -2,8 +2,9 @@
 //!
 //! A step can be long: an implicit solve runs up to its iteration cap, a self-collision pass
 //! visits every close pair. A [`Simulation`](crate::solver::simulation::Simulation) handed an
-//! [`Interrupt`] looks at it at the start of each step, before self-collision, and at every
-//! iteration of its conjugate-gradient loops, and gives up the step as soon as it is raised: the
+//! [`Interrupt`] looks at it at the start of each step, before self-collision, at every
+//! iteration of its conjugate-gradient loops and every thousand rows of the smoothed-aggregation
+//! preconditioner's refill, and gives up the step as soon as it is raised: the
 //! step then returns [`StepError::Interrupted`](crate::solver::simulation::StepError::Interrupted).
 //! The flag is one relaxed atomic load per look, nothing next to a sparse product, and a run that
 //! is not interrupted takes exactly the same path, so its results do not change by a bit.

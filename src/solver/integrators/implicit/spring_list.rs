@@ -97,7 +97,7 @@ impl<T: Real> SpringListSolver<T> {
         interrupt: Option<&Interrupt>,
         delta_v: &mut Field<T>,
     ) -> Result<SolveOutcome<T>, Interrupted> {
-        self.assemble(input, dynamics);
+        self.assemble(input, dynamics, interrupt)?;
         let outcome = self.conjugate_gradients(dynamics, tolerance, max_iterations, interrupt)?;
         for (p, dv) in self.delta_v.iter().enumerate() {
             (delta_v[0][p], delta_v[1][p], delta_v[2][p]) = (dv.x, dv.y, dv.z);
@@ -106,8 +106,14 @@ impl<T: Real> SpringListSolver<T> {
     }
 
     /// Builds the spring blocks, the preconditioner and the right-hand side
-    /// `h f - h² Σ K (v_i - v_j)`, filtered.
-    fn assemble(&mut self, input: &StepInput<'_, T>, dynamics: &Dynamics<T>) {
+    /// `h f - h² Σ K (v_i - v_j)`, filtered; gives up in the preconditioner's refill as soon as
+    /// `interrupt` is raised.
+    fn assemble(
+        &mut self,
+        input: &StepInput<'_, T>,
+        dynamics: &Dynamics<T>,
+        interrupt: Option<&Interrupt>,
+    ) -> Result<(), Interrupted> {
         let h = input.h;
         let at = |field: &Field<T>, p: usize| Vec3::new(field[0][p], field[1][p], field[2][p]);
         for p in 0..self.positions.len() {
@@ -156,8 +162,9 @@ impl<T: Real> SpringListSolver<T> {
             let bending = dynamics.bending.as_ref().map(|hinges| (hinges, h2, h));
             let system =
                 FineSystem { mass_diagonal: &self.mass_diagonal, spring_blocks: &self.blocks, bending };
-            aggregation.refill(&system, None);
+            aggregation.refill(&system, None, interrupt)?;
         }
+        Ok(())
     }
 
     /// `product = A search`, filtered.
@@ -257,7 +264,7 @@ impl<T: Real> SpringListSolver<T> {
         dynamics: &Dynamics<T>,
         delta_v: &Field<T>,
     ) -> f64 {
-        self.assemble(input, dynamics);
+        self.assemble(input, dynamics, None).expect("nothing interrupts it");
         for (p, s) in self.search.iter_mut().enumerate() {
             *s = Vec3::new(delta_v[0][p], delta_v[1][p], delta_v[2][p]);
         }
