@@ -31,6 +31,7 @@
 //! refill given up leaves nothing behind.
 
 use super::block_sparse::{Block, BlockCsr};
+use super::dense_cholesky::DenseCholesky;
 use crate::solver::forces::bending::BendingElements;
 use crate::solver::integrators::Interrupted;
 use crate::solver::interrupt::Interrupt;
@@ -235,7 +236,19 @@ impl<T: Real> Aggregation<T> {
         let last = self.levels.last_mut().expect("level 0 is there");
         last.update_inverse_diagonal();
         if let Some(dense) = &mut self.coarsest {
-            dense.factor(&last.operator, &last.inverse_diagonal);
+            let operator = &last.operator;
+            dense.clear();
+            for r in 0..operator.rows() {
+                for e in operator.row(r) {
+                    let c = operator.column(e);
+                    for (a, row) in operator.blocks[e].0.iter().enumerate() {
+                        for (b, &value) in row.iter().enumerate() {
+                            dense.add(3 * r + a, 3 * c + b, value.to_f64());
+                        }
+                    }
+                }
+            }
+            dense.factor(|p| last.inverse_diagonal[p].0.map(|row| row.map(|v| v.to_f64())));
         }
         Ok(())
     }
@@ -305,7 +318,15 @@ impl<T: Real> Aggregation<T> {
         }
         let coarsest = &mut self.levels[last];
         match &mut self.coarsest {
-            Some(dense) => dense.solve(&coarsest.rhs, &mut coarsest.solution),
+            Some(dense) => {
+                for (w, v) in dense.work().chunks_exact_mut(3).zip(&coarsest.rhs) {
+                    w.copy_from_slice(&v.to_dvec3().to_array());
+                }
+                dense.solve();
+                for (x, w) in coarsest.solution.iter_mut().zip(dense.work().chunks_exact(3)) {
+                    *x = Vec3::new(T::from_f64(w[0]), T::from_f64(w[1]), T::from_f64(w[2]));
+                }
+            }
             None => {
                 coarsest.solution.fill(Vec3::ZERO);
                 coarsest.sweep(false);
@@ -636,109 +657,6 @@ fn coarse_graph(graph: &Graph, aggregate: &[u32], aggregates: usize) -> Graph {
         merge_duplicates(edges);
     }
     coarse
-}
-
-/// A dense Cholesky factorisation `A = L Lᵀ` of the coarsest level, in `f64`.
-#[derive(Debug)]
-struct DenseCholesky {
-    size: usize,
-    /// Row-major; the lower triangle holds `L` after factoring.
-    matrix: Vec<f64>,
-    work: Vec<f64>,
-    /// Whether the last factorisation succeeded; if not, the solve is block Jacobi.
-    factored: bool,
-}
-
-impl DenseCholesky {
-    fn new(particles: usize) -> Self {
-        let size = 3 * particles;
-        Self { size, matrix: vec![0.0; size * size], work: vec![0.0; size], factored: false }
-    }
-
-    /// Factors `operator`, or keeps `inverse_diagonal` for the solve when it is not positive
-    /// definite.
-    fn factor<T: Real>(&mut self, operator: &BlockCsr<T>, inverse_diagonal: &[Block<T>]) {
-        let size = self.size;
-        self.matrix.fill(0.0);
-        for r in 0..operator.rows() {
-            for e in operator.row(r) {
-                let c = operator.column(e);
-                for a in 0..3 {
-                    for b in 0..3 {
-                        self.matrix[(3 * r + a) * size + 3 * c + b] = operator.blocks[e].0[a][b].to_f64();
-                    }
-                }
-            }
-        }
-        self.factored = true;
-        for k in 0..size {
-            let mut pivot = self.matrix[k * size + k];
-            for m in 0..k {
-                pivot -= self.matrix[k * size + m] * self.matrix[k * size + m];
-            }
-            if pivot <= 0.0 || !pivot.is_finite() {
-                self.factored = false;
-                break;
-            }
-            let pivot = pivot.sqrt();
-            self.matrix[k * size + k] = pivot;
-            for r in k + 1..size {
-                let mut value = self.matrix[r * size + k];
-                for m in 0..k {
-                    value -= self.matrix[r * size + m] * self.matrix[k * size + m];
-                }
-                self.matrix[r * size + k] = value / pivot;
-            }
-        }
-        if !self.factored {
-            self.matrix.fill(0.0);
-            for (p, inverse) in inverse_diagonal.iter().enumerate() {
-                for a in 0..3 {
-                    for b in 0..3 {
-                        self.matrix[(3 * p + a) * size + 3 * p + b] = inverse.0[a][b].to_f64();
-                    }
-                }
-            }
-        }
-    }
-
-    fn solve<T: Real>(&mut self, b: &[Vec3<T>], x: &mut [Vec3<T>]) {
-        let size = self.size;
-        for (p, v) in b.iter().enumerate() {
-            let v = v.to_dvec3();
-            self.work[3 * p..3 * p + 3].copy_from_slice(&[v.x, v.y, v.z]);
-        }
-        if self.factored {
-            for r in 0..size {
-                let mut value = self.work[r];
-                for m in 0..r {
-                    value -= self.matrix[r * size + m] * self.work[m];
-                }
-                self.work[r] = value / self.matrix[r * size + r];
-            }
-            for r in (0..size).rev() {
-                let mut value = self.work[r];
-                for m in r + 1..size {
-                    value -= self.matrix[m * size + r] * self.work[m];
-                }
-                self.work[r] = value / self.matrix[r * size + r];
-            }
-            for (p, x) in x.iter_mut().enumerate() {
-                let w = &self.work[3 * p..3 * p + 3];
-                *x = Vec3::new(T::from_f64(w[0]), T::from_f64(w[1]), T::from_f64(w[2]));
-            }
-        } else {
-            for (p, x) in x.iter_mut().enumerate() {
-                let row = |a: usize| {
-                    let m = &self.matrix[(3 * p + a) * size + 3 * p..][..3];
-                    T::from_f64(
-                        m[0] * self.work[3 * p] + m[1] * self.work[3 * p + 1] + m[2] * self.work[3 * p + 2],
-                    )
-                };
-                *x = Vec3::new(row(0), row(1), row(2));
-            }
-        }
-    }
 }
 
 #[cfg(test)]

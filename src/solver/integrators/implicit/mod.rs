@@ -26,6 +26,7 @@
 
 mod aggregation;
 mod block_sparse;
+mod dense_cholesky;
 mod galerkin;
 mod grid_operator;
 mod grid_solver;

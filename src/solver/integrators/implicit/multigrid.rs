@@ -38,6 +38,7 @@ use crate::solver::math::sym3::Sym3;
 use crate::solver::math::vec3::Vec3;
 use std::any::Any;
 
+use super::dense_cholesky::DenseCholesky;
 use super::galerkin::{BlockStencil, FORWARD, held_smoother, parent_weights, slot};
 use super::grid_operator::{Family, Field, GridOperator, zero_field};
 use super::level_bending::{BendingMatrices, LevelBending};
@@ -185,8 +186,8 @@ impl<T: Real> Multigrid<T> {
             operator.update_smoother(power, residual);
         }
         match self.coarse.last() {
-            Some(last) => self.coarsest.factor(&last.operator, &[], &self.filter),
-            None => self.coarsest.factor(&self.blocks, &self.held, &self.filter),
+            Some(last) => factor_coarsest(&mut self.coarsest, &last.operator, &[], &self.filter),
+            None => factor_coarsest(&mut self.coarsest, &self.blocks, &self.held, &self.filter),
         }
     }
 
@@ -231,7 +232,7 @@ impl<T: Real> Multigrid<T> {
 
     fn cycle(&mut self) {
         if self.coarse.is_empty() {
-            self.coarsest.solve(&self.rhs, &mut self.solution);
+            solve_coarsest(&mut self.coarsest, &self.rhs, &mut self.solution);
             zero_pinned(&mut self.solution, &self.fine.pinned);
             return;
         }
@@ -255,7 +256,7 @@ impl<T: Real> Multigrid<T> {
             restrict(&fine.residual, nx, ny, fine.operator.is_parallel(), coarse);
         }
         let coarsest = &mut self.coarse[last];
-        self.coarsest.solve(&coarsest.rhs, &mut coarsest.solution);
+        solve_coarsest(&mut self.coarsest, &coarsest.rhs, &mut coarsest.solution);
         zero_pinned(&mut coarsest.solution, &coarsest.operator.pinned);
         for l in (0..last).rev() {
             let (finer, coarser) = self.coarse.split_at_mut(l + 1);
@@ -493,109 +494,53 @@ pub(crate) fn prolong_add<T: Real>(
     });
 }
 
-/// A dense Cholesky factorisation `A = L Lᵀ` of the coarsest level, in `f64`.
-#[derive(Debug)]
-struct DenseCholesky {
-    size: usize,
-    /// Row-major; the lower triangle holds `L` after factoring.
-    matrix: Vec<f64>,
-    work: Vec<f64>,
-    /// Whether the last factorisation succeeded; if not, the solve falls back to the diagonal.
-    factored: bool,
+/// Fills `coarsest` with the coarsest level `operator`, with the identity on its pinned
+/// particles and `I − S_p` added on each `held` particle `p` of `filter`, as the cycle's level
+/// sees them, and factors it; the fallback is the inverse of the diagonal entries.
+fn factor_coarsest<T: Real>(
+    coarsest: &mut DenseCholesky,
+    operator: &BlockStencil<T>,
+    held: &[usize],
+    filter: &[Sym3<T>],
+) {
+    coarsest.clear();
+    operator.for_each_block(|p, q, block| {
+        for (e, &value) in block.iter().enumerate() {
+            let (a, b) = (e / 3, e % 3);
+            coarsest.add(3 * p + a, 3 * q + b, value.to_f64());
+            if p != q {
+                coarsest.add(3 * q + b, 3 * p + a, value.to_f64());
+            }
+        }
+    });
+    let identity = Sym3::<T>::identity();
+    let extra = operator.pinned.iter().map(|&p| (p, identity));
+    let held =
+        held.iter().map(|&p| (p, Sym3::from_entries(identity.entries()) + filter[p] * (T::ZERO - T::ONE)));
+    for (p, [xx, yy, zz, xy, xz, yz]) in extra.chain(held).map(|(p, s)| (p, s.entries().map(|e| e.to_f64())))
+    {
+        let block = [[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]];
+        for (a, row) in block.iter().enumerate() {
+            for (b, &value) in row.iter().enumerate() {
+                coarsest.add(3 * p + a, 3 * p + b, value);
+            }
+        }
+    }
+    coarsest.factor(|p| {
+        let [xx, yy, zz, ..] = operator.diagonal_block(p).entries().map(|e| e.to_f64());
+        let inverse = |d: f64| if d > 0.0 { 1.0 / d } else { 0.0 };
+        [[inverse(xx), 0.0, 0.0], [0.0, inverse(yy), 0.0], [0.0, 0.0, inverse(zz)]]
+    });
 }
 
-impl DenseCholesky {
-    fn new(particles: usize) -> Self {
-        let size = 3 * particles;
-        Self { size, matrix: vec![0.0; size * size], work: vec![0.0; size], factored: false }
+/// `x = A⁻¹ b` on the coarsest level, by its factor.
+fn solve_coarsest<T: Real>(coarsest: &mut DenseCholesky, b: &Field<T>, x: &mut Field<T>) {
+    for (u, w) in coarsest.work().iter_mut().enumerate() {
+        *w = b[u % 3][u / 3].to_f64();
     }
-
-    /// Factors `operator`, with the identity on its pinned particles and `I − S_p` added on
-    /// each `held` particle `p` of `filter`, as the cycle's level sees them.
-    fn factor<T: Real>(&mut self, operator: &BlockStencil<T>, held: &[usize], filter: &[Sym3<T>]) {
-        let (n, size) = (operator.len(), self.size);
-        self.matrix.fill(0.0);
-        operator.for_each_block(|p, q, block| {
-            for (e, &value) in block.iter().enumerate() {
-                let (a, b) = (e / 3, e % 3);
-                self.matrix[(3 * p + a) * size + 3 * q + b] = value.to_f64();
-                self.matrix[(3 * q + b) * size + 3 * p + a] = value.to_f64();
-            }
-        });
-        let identity = Sym3::<T>::identity();
-        let extra = operator.pinned.iter().map(|&p| (p, identity));
-        let held = held
-            .iter()
-            .map(|&p| (p, Sym3::from_entries(identity.entries()) + filter[p] * (T::ZERO - T::ONE)));
-        for (p, [xx, yy, zz, xy, xz, yz]) in
-            extra.chain(held).map(|(p, s)| (p, s.entries().map(|e| e.to_f64())))
-        {
-            let block = [[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]];
-            for (a, row) in block.iter().enumerate() {
-                for (b, &value) in row.iter().enumerate() {
-                    self.matrix[(3 * p + a) * size + 3 * p + b] += value;
-                }
-            }
-        }
-        self.factored = true;
-        for k in 0..size {
-            let mut pivot = self.matrix[k * size + k];
-            for m in 0..k {
-                pivot -= self.matrix[k * size + m] * self.matrix[k * size + m];
-            }
-            if pivot <= 0.0 || !pivot.is_finite() {
-                self.factored = false;
-                break;
-            }
-            let pivot = pivot.sqrt();
-            self.matrix[k * size + k] = pivot;
-            for r in k + 1..size {
-                let mut value = self.matrix[r * size + k];
-                for m in 0..k {
-                    value -= self.matrix[r * size + m] * self.matrix[k * size + m];
-                }
-                self.matrix[r * size + k] = value / pivot;
-            }
-        }
-        if !self.factored {
-            self.matrix.fill(0.0);
-            for p in 0..n {
-                let [xx, yy, zz, ..] = operator.diagonal_block(p).entries().map(|e| e.to_f64());
-                for (a, d) in [xx, yy, zz].into_iter().enumerate() {
-                    self.matrix[(3 * p + a) * size + 3 * p + a] = if d > 0.0 { 1.0 / d } else { 0.0 };
-                }
-            }
-        }
-    }
-
-    fn solve<T: Real>(&mut self, b: &Field<T>, x: &mut Field<T>) {
-        let size = self.size;
-        for (u, w) in self.work.iter_mut().enumerate() {
-            *w = b[u % 3][u / 3].to_f64();
-        }
-        if self.factored {
-            for r in 0..size {
-                let mut value = self.work[r];
-                for m in 0..r {
-                    value -= self.matrix[r * size + m] * self.work[m];
-                }
-                self.work[r] = value / self.matrix[r * size + r];
-            }
-            for r in (0..size).rev() {
-                let mut value = self.work[r];
-                for m in r + 1..size {
-                    value -= self.matrix[m * size + r] * self.work[m];
-                }
-                self.work[r] = value / self.matrix[r * size + r];
-            }
-        } else {
-            for (u, w) in self.work.iter_mut().enumerate() {
-                *w *= self.matrix[u * size + u];
-            }
-        }
-        for (u, &w) in self.work.iter().enumerate() {
-            x[u % 3][u / 3] = T::from_f64(w);
-        }
+    coarsest.solve();
+    for (u, &w) in coarsest.work().iter().enumerate() {
+        x[u % 3][u / 3] = T::from_f64(w);
     }
 }
 
