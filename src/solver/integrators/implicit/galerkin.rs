@@ -312,7 +312,7 @@ impl<T: Real> BlockStencil<T> {
                 let out = (cj - first) * nx;
                 // Adds `w` times the blocks `block[k]`, k in `from`, between fine (i, fj) and
                 // (i + di, gj), to the coarse blocks between (i, cj) and the parents of
-                // (i + di, gj), for the particles i from `columns.start`.
+                // (i + di, gj), for the particles i from `first_column` on.
                 let mut spread = |block: &[&[T]; 9],
                                   from: std::ops::Range<usize>,
                                   first_column: usize,
