@@ -265,6 +265,19 @@ impl<T: Real> BlockStencil<T> {
         }
     }
 
+    /// This level's blocks as runs over its particles, entry by entry (see [`BlockRuns`]).
+    fn block_runs(&self) -> BlockRuns<'_, T> {
+        let diagonal = self.diagonal.arrays();
+        let couplings = self.couplings.arrays();
+        let ahead: [[&[T]; 9]; FORWARD] =
+            std::array::from_fn(|s| std::array::from_fn(|e| couplings[9 * s + e]));
+        BlockRuns {
+            diagonal: AS_GENERAL.map(|e| diagonal[e]),
+            ahead,
+            behind: ahead.map(|b| TRANSPOSED.map(|e| b[e])),
+        }
+    }
+
     /// This level as the Galerkin product `Pᵀ A P` of `fine`, the level above, with the rows,
     /// columns and diagonal of this level's pinned particles zero. The bilinear `P` is the
     /// product of an interpolation along y and one along x, so `Pᵀ A P` is taken one axis at a
@@ -297,12 +310,7 @@ impl<T: Real> BlockStencil<T> {
         debug_assert_eq!(nx, fine.nx);
         let band = self.band_rows();
         let fine_used = fine.used;
-        let diagonal = fine.diagonal.arrays();
-        let couplings = fine.couplings.arrays();
-        let diagonal: [&[T]; 9] = AS_GENERAL.map(|e| diagonal[e]);
-        let ahead: [[&[T]; 9]; FORWARD] =
-            std::array::from_fn(|s| std::array::from_fn(|e| couplings[9 * s + e]));
-        let behind: [[&[T]; 9]; FORWARD] = ahead.map(|b| TRANSPOSED.map(|e| b[e]));
+        let BlockRuns { diagonal, ahead, behind } = fine.block_runs();
         let rows = (self.diagonal.arrays_mut(), self.couplings.arrays_mut());
         in_bands(rows, cy, nx, band, &|first, count, (mut d, mut c)| {
             for run in d.iter_mut().chain(c.iter_mut()) {
@@ -326,20 +334,13 @@ impl<T: Real> BlockStencil<T> {
                         }
                         let to = out + first_column..out + first_column + from.len();
                         let w = w * wp;
-                        match SUMS_OF[(dj * 5 + di + 2) as usize] {
-                            BEHIND => {}
-                            0 => {
-                                for (run, e) in d.iter_mut().zip([0, 4, 8, 1, 2, 5]) {
-                                    add_scaled(&mut run[to.clone()], &block[e][from.clone()], w);
-                                }
-                            }
-                            sum => {
-                                let s = sum as usize - 1;
-                                for (e, run) in c[9 * s..9 * s + 9].iter_mut().enumerate() {
-                                    add_scaled(&mut run[to.clone()], &block[e][from.clone()], w);
-                                }
-                            }
+                        let sum = SUMS_OF[(dj * 5 + di + 2) as usize];
+                        if sum == BEHIND {
+                            continue;
                         }
+                        each_run_of(sum, &mut d, &mut c, |run, e| {
+                            add_scaled(&mut run[to.clone()], &block[e][from.clone()], w)
+                        });
                     }
                 };
                 for (fj, w) in children::<T>(cj, cy, ny) {
@@ -377,12 +378,7 @@ impl<T: Real> BlockStencil<T> {
         debug_assert_eq!((ny, weights[0].len()), (fine.ny, nx));
         let band = self.band_rows();
         let fine_used = fine.used;
-        let diagonal = fine.diagonal.arrays();
-        let couplings = fine.couplings.arrays();
-        let diagonal: [&[T]; 9] = AS_GENERAL.map(|e| diagonal[e]);
-        let ahead: [[&[T]; 9]; FORWARD] =
-            std::array::from_fn(|s| std::array::from_fn(|e| couplings[9 * s + e]));
-        let behind: [[&[T]; 9]; FORWARD] = ahead.map(|b| TRANSPOSED.map(|e| b[e]));
+        let BlockRuns { diagonal, ahead, behind } = fine.block_runs();
         let rows = (self.diagonal.arrays_mut(), self.couplings.arrays_mut());
         in_bands(rows, ny, cx, band, &|first, count, (mut d, mut c)| {
             for run in d.iter_mut().chain(c.iter_mut()) {
@@ -407,11 +403,10 @@ impl<T: Real> BlockStencil<T> {
                         for own in 0..=parity {
                             for other in 0..=partner_parity {
                                 let offset = below + other as isize - own as isize;
-                                let to = match SUMS_OF[dj * 5 + (offset + 2) as usize] {
-                                    BEHIND => continue,
-                                    0 => None,
-                                    sum => Some(sum as usize - 1),
-                                };
+                                let sum = SUMS_OF[dj * 5 + (offset + 2) as usize];
+                                if sum == BEHIND {
+                                    continue;
+                                }
                                 let m_end = m_end.min(cx - own);
                                 if m_first >= m_end {
                                     continue;
@@ -435,18 +430,7 @@ impl<T: Real> BlockStencil<T> {
                                             *r = f.mul_add(w, *r);
                                         }
                                     };
-                                    match to {
-                                        None => {
-                                            for (run, e) in d.iter_mut().zip([0, 4, 8, 1, 2, 5]) {
-                                                add(run, block[e]);
-                                            }
-                                        }
-                                        Some(s) => {
-                                            for (e, run) in c[9 * s..9 * s + 9].iter_mut().enumerate() {
-                                                add(run, block[e]);
-                                            }
-                                        }
-                                    }
+                                    each_run_of(sum, &mut d, &mut c, |run, e| add(run, block[e]));
                                     m += len;
                                 }
                             }
@@ -700,6 +684,31 @@ const AS_GENERAL: [usize; 9] = [0, 3, 4, 3, 1, 5, 4, 5, 2];
 
 /// Entry `e` of a block's transpose is entry `TRANSPOSED[e]` of the block.
 const TRANSPOSED: [usize; 9] = [0, 3, 6, 1, 4, 7, 2, 5, 8];
+
+/// A level's blocks as runs over its particles, entry `e` of each block (row-major) in run `[e]`:
+/// the diagonal block, the blocks ahead at each slot, and at each slot the transposes of the
+/// blocks ahead (a particle's run holds the block its partner behind sees).
+struct BlockRuns<'a, T> {
+    diagonal: [&'a [T]; 9],
+    ahead: [[&'a [T]; 9]; FORWARD],
+    behind: [[&'a [T]; 9]; FORWARD],
+}
+
+/// Calls `add(run, e)` for each run of a band that the sum `sum` (see [`SUMS_OF`]; not
+/// [`BEHIND`]) is kept in, with the entry `e` of a general block that goes there: the six upper
+/// entries of the diagonal `d`, or the nine of slot `sum − 1` of the couplings `c`.
+fn each_run_of<T>(sum: u8, d: &mut [&mut [T]], c: &mut [&mut [T]], mut add: impl FnMut(&mut [T], usize)) {
+    if sum == 0 {
+        for (run, e) in d.iter_mut().zip([0, 4, 8, 1, 2, 5]) {
+            add(run, e);
+        }
+    } else {
+        let s = sum as usize - 1;
+        for (e, run) in c[9 * s..9 * s + 9].iter_mut().enumerate() {
+            add(run, e);
+        }
+    }
+}
 
 /// `to += w from`, element by element.
 #[inline(always)]
