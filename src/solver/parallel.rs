@@ -146,6 +146,18 @@ impl<T: Send, const K: usize> Rows for [&mut [T]; K] {
     }
 }
 
+impl<R: Rows> Rows for Option<R> {
+    fn split_at(self, at: usize) -> (Self, Self) {
+        match self {
+            Some(rows) => {
+                let (front, back) = rows.split_at(at);
+                (Some(front), Some(back))
+            }
+            None => (None, None),
+        }
+    }
+}
+
 impl<A: Rows, B: Rows> Rows for (A, B) {
     fn split_at(self, at: usize) -> (Self, Self) {
         let ((a0, a1), (b0, b1)) = (self.0.split_at(at), self.1.split_at(at));

@@ -247,7 +247,7 @@ impl<T: Real> Simulation<T> {
             moved |=
                 self_collision.resolve(&mut self.state, inverse_masses).map_err(StepError::LimitReached)?;
         }
-        if let Some(contacts) = &self.contacts {
+        if let Some(contacts) = &mut self.contacts {
             moved |= contacts.resolve(&mut self.state, inverse_masses);
         }
         if moved {

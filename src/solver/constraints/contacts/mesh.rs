@@ -18,7 +18,7 @@
 use crate::solver::constraints::contacts::Surface;
 use crate::solver::constraints::contacts::TriangleSurface;
 use crate::solver::constraints::contacts::mesh_lanes::FacePlanes;
-use crate::solver::constraints::contacts::nearby_triangles::{CAPACITY, KEEP, Kept, NearbyTriangles, REACH};
+use crate::solver::constraints::contacts::nearby_triangles::{CAPACITY, KEEP, Kept, NearbyBand, REACH};
 use crate::solver::constraints::contacts::surface_topology::Topology;
 use crate::solver::constraints::contacts::triangle::Feature;
 use crate::solver::constraints::contacts::triangle_bvh::{Nearest, TriangleBvh};
@@ -34,7 +34,7 @@ pub(super) struct MeshShape<T> {
     bvh: TriangleBvh<T>,
     /// Unit normal of each triangle (outward for a closed mesh).
     normals: Vec<Vec3<T>>,
-    /// The triangles' planes by slot, for the one-triangle case in lanes.
+    /// The triangles' planes by slot, which particles resting on them keep.
     faces: FacePlanes<T>,
     /// For a closed mesh, per triangle, the pseudo-normals of its edges and of its corners.
     pseudo_normals: Option<Vec<[[Vec3<T>; 3]; 2]>>,
@@ -69,11 +69,6 @@ impl<T: Real> MeshShape<T> {
     /// The distance particles keep from the triangles.
     pub fn thickness(&self) -> T {
         self.thickness
-    }
-
-    /// The triangles' planes by slot.
-    pub(super) fn faces(&self) -> &FacePlanes<T> {
-        &self.faces
     }
 
     /// Whether the mesh is closed (a solid).
@@ -116,18 +111,19 @@ impl<T: Real> MeshShape<T> {
     }
 
     /// The contact of a particle that moved from `start` to `end` in a step, if it has one: where
-    /// it ends and the outward normal there. With `nearby` (the triangles near each particle,
-    /// and this particle's index), the triangles kept near the particle stand for the hierarchy
-    /// while its path stays near them, and are gathered anew when it does not.
+    /// it ends and the outward normal there. With `nearby` (the triangles near a band's
+    /// particles, and this particle's index in the band), the triangles kept near the particle
+    /// stand for the hierarchy while its path stays near them, and are gathered anew when it
+    /// does not.
     pub fn contact(
         &self,
         start: Vec3<T>,
         end: Vec3<T>,
-        nearby: Option<(&NearbyTriangles, usize)>,
+        nearby: Option<(&mut NearbyBand<T>, usize)>,
     ) -> Option<Surface<T>> {
         let mut slots = [0u32; CAPACITY];
         let keep = self.thickness * T::from_f64(KEEP);
-        let kept = nearby.and_then(|(nearby, p)| nearby.kept(p, start, end, keep, &mut slots));
+        let kept = nearby.as_ref().and_then(|(nearby, p)| nearby.kept(*p, start, end, keep, &mut slots));
         let d = end - start;
         let closed = self.is_closed();
         let enters = |t: usize, d: Vec3<T>| !closed || d.dot(self.normals[t]) < T::ZERO;
@@ -153,7 +149,8 @@ impl<T: Real> MeshShape<T> {
         let near = match (kept, nearby) {
             (Some(Kept { count, .. }), _) if crossed.is_none() => Some(count),
             (_, Some((nearby, p))) => {
-                nearby.gather(p, end, &self.bvh, self.thickness * T::from_f64(REACH), &mut slots)
+                let reach = self.thickness * T::from_f64(REACH);
+                nearby.gather(p, end, &self.bvh, &self.faces, reach, &mut slots)
             }
             (_, None) => None,
         };

@@ -6,14 +6,15 @@
 //! For such a particle the whole contact of [`MeshShape::contact`] is its height over that
 //! triangle's plane: its nearest point is its foot on the plane, it is pushed out to the
 //! thickness along the direction from the foot, and the response follows. A block reads its
-//! particles' anchors and bounds and the planes of their triangles into arrays, then computes
-//! every lane with no branch, in the same operations as the one-particle path, so that a lane
-//! gives the same position and velocity. A lane that is not in that case (a path that strays
-//! from its anchor, an end over an edge, or one too near the plane to have a direction) keeps its
-//! values and is left to the one-particle path.
+//! particles' anchors, bounds and planes (each particle keeps its nearest triangle's plane, so
+//! that every read is of consecutive memory), then computes every lane with no branch, in the
+//! same operations as the one-particle path, so that a lane gives the same position and
+//! velocity. A lane that is not in that case (a path that strays from its anchor, an end over an
+//! edge, or one too near the plane to have a direction) keeps its values and is left to the
+//! one-particle path.
 
 use crate::solver::constraints::contacts::mesh::{DIRECTION_FLOOR, MeshShape};
-use crate::solver::constraints::contacts::nearby_triangles::{KEEP, NearbyTriangles};
+use crate::solver::constraints::contacts::nearby_triangles::{KEEP, NearbyBand, Settled};
 use crate::solver::constraints::contacts::triangle_bvh::TriangleBvh;
 use crate::solver::constraints::contacts::{Band, respond};
 use crate::solver::forces::spring_blocks::{self as blocks, LANES};
@@ -21,13 +22,13 @@ use crate::solver::math::real::Real;
 use crate::solver::math::vec3::Vec3;
 
 /// A triangle's plane as the lanes read it: the unit normal and offset of its
-/// [`TrianglePlanes`](super::triangle::TrianglePlanes), and its normal as the mesh keeps it
-/// (outward for a closed mesh), which tells a closed mesh's inside.
+/// [`TrianglePlanes`](super::triangle::TrianglePlanes), turned (both negated, which changes no
+/// bit of a foot or a distance) to face as the mesh's normal of the triangle does: outward for
+/// a closed mesh, so that a point with a negative height over it is inside.
 #[derive(Clone, Copy, Debug, Default)]
-pub(super) struct FacePlane<T> {
+struct FacePlane<T> {
     normal: Vec3<T>,
     offset: T,
-    outward: Vec3<T>,
 }
 
 /// The plane of every triangle, in the hierarchy's leaf order (by slot); one of no area for an
@@ -41,7 +42,11 @@ impl<T: Real> FacePlanes<T> {
         let mut planes: Vec<FacePlane<T>> = (0..bvh.len() as u32)
             .map(|slot| {
                 let (normal, offset) = bvh.plane(slot);
-                FacePlane { normal, offset, outward: normals[bvh.triangle(slot)] }
+                if normal.dot(normals[bvh.triangle(slot)]) < T::ZERO {
+                    FacePlane { normal: -normal, offset: -offset }
+                } else {
+                    FacePlane { normal, offset }
+                }
             })
             .collect();
         if planes.is_empty() {
@@ -49,38 +54,59 @@ impl<T: Real> FacePlanes<T> {
         }
         Self(planes)
     }
+
+    /// The unit normal and offset of the triangle in `slot`.
+    pub fn plane(&self, slot: u32) -> (Vec3<T>, T) {
+        let face = self.0[slot as usize];
+        (face.normal, face.offset)
+    }
+}
+
+/// Resolves the contacts of the particles of `band` in the one-triangle case, in `rest.len()`
+/// blocks of [`LANES`] from particle `first`, against a fixed mesh with the band's kept
+/// triangles in `nearby`. Returns whether any particle was touched, and marks in `rest` (bit
+/// `l` of a block's byte for its lane `l`) the free particles left to the one-particle path
+/// (those of them that pass [`MeshShape::reaches`]). The blocks run with no call between them,
+/// and read arrays of one length, so that what they share is read once and a block's bounds
+/// are checked once.
+pub(super) fn resolve_blocks<T: Real>(
+    mesh: &MeshShape<T>,
+    nearby: &NearbyBand<T>,
+    band: &mut Band<T>,
+    first: usize,
+    rest: &mut [u8],
+    friction: T,
+    restitution: T,
+) -> bool {
+    let end = first + rest.len() * LANES;
+    let (mut band, settled) = (band.first(end), nearby.settled(end));
+    let closed = mesh.is_closed();
+    let mut touched = false;
+    for (k, rest) in rest.iter_mut().enumerate() {
+        let block = first + k * LANES;
+        let resolved = if closed {
+            resolve::<T, true>(mesh, &settled, &mut band, block, friction, restitution)
+        } else {
+            resolve::<T, false>(mesh, &settled, &mut band, block, friction, restitution)
+        };
+        touched |= resolved.touched;
+        *rest = resolved.rest;
+    }
+    touched
 }
 
 /// What a block's lanes did.
-pub(super) struct Resolved {
+struct Resolved {
     /// Whether any particle was touched.
-    pub touched: bool,
-    /// The free particles that may have a contact and are not in the one-triangle case.
-    pub rest: [bool; LANES],
-}
-
-/// Resolves the contacts of the [`LANES`] particles of `band` from `block` that are in the
-/// one-triangle case, against a fixed mesh with particle `p`'s kept triangles in `nearby`.
-#[inline(always)]
-pub(super) fn resolve_lanes<T: Real>(
-    mesh: &MeshShape<T>,
-    nearby: &NearbyTriangles,
-    band: &mut Band<T>,
-    block: usize,
-    friction: T,
-    restitution: T,
-) -> Resolved {
-    if mesh.is_closed() {
-        resolve::<T, true>(mesh, nearby, band, block, friction, restitution)
-    } else {
-        resolve::<T, false>(mesh, nearby, band, block, friction, restitution)
-    }
+    touched: bool,
+    /// The free particles not in the one-triangle case, lane `l` as bit `l`.
+    rest: u8,
 }
 
 #[inline(always)]
 fn resolve<T: Real, const CLOSED: bool>(
     mesh: &MeshShape<T>,
-    nearby: &NearbyTriangles,
+    settled: &Settled<T>,
     band: &mut Band<T>,
     block: usize,
     friction: T,
@@ -89,19 +115,8 @@ fn resolve<T: Real, const CLOSED: bool>(
     fn whole<T>(axis: &mut [T], first: usize) -> &mut [T; LANES] {
         (&mut axis[first..first + LANES]).try_into().expect("a whole block")
     }
-    let settled = nearby.settled_lanes::<T>(band.first + block);
-    // The gathers of the triangles' planes, one lane at a time, before the arithmetic, so that
-    // the arithmetic is one vector instruction wide.
-    let (mut plane, mut outward) = ([[T::ZERO; LANES]; 4], [[T::ZERO; LANES]; 3]);
-    for lane in 0..LANES {
-        let face = mesh.faces().0[settled.nearest[lane] as usize];
-        let [nx, ny, nz] = face.normal.to_array();
-        (plane[0][lane], plane[1][lane], plane[2][lane], plane[3][lane]) = (nx, ny, nz, face.offset);
-        if CLOSED {
-            let [ox, oy, oz] = face.outward.to_array();
-            (outward[0][lane], outward[1][lane], outward[2][lane]) = (ox, oy, oz);
-        }
-    }
+    let settled = settled.lanes(block);
+    let [nx, ny, nz, offsets] = settled.planes;
     let start = blocks::axes(band.start, block);
     let (mut x, mut v) = (
         band.positions.each_mut().map(|a| whole(a, block)),
@@ -121,19 +136,24 @@ fn resolve<T: Real, const CLOSED: bool>(
         let farthest = strayed.max(went);
         let alone =
             (farthest <= keep * keep) & (farthest < settled.clear[lane]) & (went < settled.settled[lane]);
-        let normal = Vec3::new(plane[0][lane], plane[1][lane], plane[2][lane]);
-        let height = normal.dot(end) - plane[3][lane];
+        let normal = Vec3::new(nx[lane], ny[lane], nz[lane]);
+        let height = normal.dot(end) - offsets[lane];
         let distance_squared = height * height;
         let foot = end - normal * height;
         let distance = distance_squared.sqrt();
-        let inside = CLOSED && (end - foot).dot(at(outward.each_ref())) < T::ZERO;
+        // The plane faces outward on a closed mesh. Where the sign of this height and that of
+        // the one-particle path's `(end - foot)·n` could differ, the distance is below the floor
+        // and the lane is not answered.
+        let inside = CLOSED && height < T::ZERO;
         // The one-particle path's direction from the foot: discarded when too short to have one.
         let away = (end - foot) * (T::ONE / distance);
         let direction = if inside { -away } else { away };
         let steady = distance > floor;
         let near = (distance_squared <= thickness * thickness) & (inside | (distance <= thickness));
-        let candidate = (inverse_masses[lane] != T::ZERO) & mesh.reaches(from, end);
-        let answered = candidate & alone & steady;
+        // An answered end lies within the thickness of its triangle's face, so inside the box
+        // that `MeshShape::reaches` tests: that test is left to the particles not answered.
+        let free = inverse_masses[lane] != T::ZERO;
+        let answered = free & alone & steady;
         let hit = answered & near;
         let onto = foot + direction * thickness;
         let before = at(v.each_ref().map(|a| &**a));
@@ -144,10 +164,11 @@ fn resolve<T: Real, const CLOSED: bool>(
         (out[0][lane], out[1][lane], out[2][lane]) = (onto.x, onto.y, onto.z);
         (out[3][lane], out[4][lane], out[5][lane]) = (velocity.x, velocity.y, velocity.z);
         hits[lane] = hit;
-        rest[lane] = candidate & !answered;
+        rest[lane] = free & !answered;
     }
     for (axis, values) in x.iter_mut().chain(v.iter_mut()).zip(&out) {
         **axis = *values;
     }
+    let rest = rest.iter().enumerate().fold(0, |bits, (lane, &rest)| bits | u8::from(rest) << lane);
     Resolved { touched: hits.into_iter().fold(false, |any, hit| any | hit), rest }
 }

@@ -257,7 +257,8 @@ fn kept_triangles_give_the_hierarchys_contacts(
 ) -> f64 {
     let shape = mesh::MeshShape::<f64>::new(surface, thickness);
     let particles = 64;
-    let nearby = nearby_triangles::NearbyTriangles::new(particles);
+    let mut nearby = nearby_triangles::NearbyTriangles::new(particles);
+    let mut nearby = nearby.band();
     let mut seed = 7;
     let mut kept_steps = 0;
     let steps = 300;
@@ -271,7 +272,7 @@ fn kept_triangles_give_the_hierarchys_contacts(
             let keep = thickness * nearby_triangles::KEEP;
             let kept = nearby.kept(p, x, end, keep, &mut slots);
             kept_steps += usize::from(kept.is_some_and(|k| k.count > 0));
-            let with_kept = shape.contact(x, end, Some((&nearby, p)));
+            let with_kept = shape.contact(x, end, Some((&mut nearby, p)));
             let walked = shape.contact(x, end, None);
             assert!(
                 same_contact(with_kept, walked),
@@ -312,7 +313,8 @@ fn a_particle_resting_on_a_mesh_meets_only_its_nearest_triangle_and_crosses_none
     let bumpy = bumpy_sheet(24);
     let shape = mesh::MeshShape::<f64>::new(&bumpy, thickness);
     let (particles, steps) = (64, 50);
-    let nearby = nearby_triangles::NearbyTriangles::new(particles);
+    let mut nearby = nearby_triangles::NearbyTriangles::new(particles);
+    let mut nearby = nearby.band();
     let mut seed = 3;
     let (mut alone, mut touching) = (0, 0);
     for p in 0..particles {
@@ -326,7 +328,7 @@ fn a_particle_resting_on_a_mesh_meets_only_its_nearest_triangle_and_crosses_none
             let kept = nearby.kept(p, x, end, thickness * nearby_triangles::KEEP, &mut slots);
             alone +=
                 usize::from(kept == Some(nearby_triangles::Kept { count: 1, clear: true, over_face: true }));
-            let with_kept = shape.contact(x, end, Some((&nearby, p)));
+            let with_kept = shape.contact(x, end, Some((&mut nearby, p)));
             let walked = shape.contact(x, end, None);
             assert!(
                 same_contact(with_kept, walked),
@@ -587,41 +589,48 @@ fn degenerate_triangles_are_left_out_and_never_make_a_nan() {
 
 /// Resolves the one collider of `contacts` one particle at a time, as every particle was before
 /// resting particles were answered a block at a time: the test `reaches`, then the exact contact.
-fn resolve_one_by_one<T: Real>(contacts: &Contacts<T>, state: &mut State<T>, inverse_masses: &[T]) {
+fn resolve_one_by_one<T: Real>(contacts: &mut Contacts<T>, state: &mut State<T>, inverse_masses: &[T]) {
     let c = &contacts.colliders[0];
-    let ShapeIn::Mesh(mesh) = &c.shape else { panic!("a mesh collider") };
+    let (ShapeIn::Mesh(mesh), Some(nearby)) = (&c.shape, &mut contacts.nearby[0]) else {
+        panic!("a mesh collider")
+    };
+    let mut nearby = nearby.band();
     let n = inverse_masses.len();
     let [x, y, z] = state.positions.axes_mut();
     let [u, v, w] = state.velocities.axes_mut();
     let start = contacts.start.range(0..n);
-    let mut band = Band { first: 0, start, positions: [x, y, z], velocities: [u, v, w], inverse_masses };
+    let mut band = Band { start, positions: [x, y, z], velocities: [u, v, w], inverse_masses };
     for p in 0..n {
         let at = |axes: [&[T]; 3]| Vec3::new(axes[0][p], axes[1][p], axes[2][p]);
         if mesh.reaches(at(start), at(band.positions.each_ref().map(|a| &**a))) {
-            band.contact(c, p);
+            band.contact(c, Some(&mut nearby), p);
         }
     }
 }
 
-/// How many free particles that may touch the mesh [`mesh_lanes::resolve_lanes`] answers,
+/// How many free particles that may touch the mesh [`mesh_lanes::resolve_blocks`] answers,
 /// resolving the rest one at a time as the stage does: of all, of those in `marked`, and how many
 /// of those in `marked` may touch it.
 fn resolve_by_blocks<T: Real>(
-    contacts: &Contacts<T>,
+    contacts: &mut Contacts<T>,
     state: &mut State<T>,
     inverse_masses: &[T],
     marked: &[bool],
 ) -> (usize, usize, usize) {
     let c = &contacts.colliders[0];
-    let (ShapeIn::Mesh(mesh), Some(nearby)) = (&c.shape, &c.nearby) else { panic!("a mesh collider") };
+    let (ShapeIn::Mesh(mesh), Some(nearby)) = (&c.shape, &mut contacts.nearby[0]) else {
+        panic!("a mesh collider")
+    };
+    let mut nearby = nearby.band();
     let n = inverse_masses.len();
     let [x, y, z] = state.positions.axes_mut();
     let [u, v, w] = state.velocities.axes_mut();
     let start = contacts.start.range(0..n);
-    let mut band = Band { first: 0, start, positions: [x, y, z], velocities: [u, v, w], inverse_masses };
+    let mut band = Band { start, positions: [x, y, z], velocities: [u, v, w], inverse_masses };
     let (mut answered, mut answered_marked, mut marked_candidates) = (0, 0, 0);
     for block in (0..n).step_by(LANES) {
-        let resolved = mesh_lanes::resolve_lanes(mesh, nearby, &mut band, block, c.friction, c.restitution);
+        let mut rest = [0];
+        mesh_lanes::resolve_blocks(mesh, &nearby, &mut band, block, &mut rest, c.friction, c.restitution);
         for lane in 0..LANES {
             let p = block + lane;
             let candidate = mesh.reaches(
@@ -630,8 +639,8 @@ fn resolve_by_blocks<T: Real>(
             );
             let free_candidate = candidate && inverse_masses[p] != T::ZERO;
             marked_candidates += usize::from(free_candidate && marked[p]);
-            if resolved.rest[lane] {
-                band.contact(c, p);
+            if (rest[0] >> lane) & 1 == 1 && candidate {
+                band.contact(c, Some(&mut nearby), p);
             } else if free_candidate {
                 answered += 1;
                 answered_marked += usize::from(marked[p]);
@@ -699,9 +708,10 @@ fn stepped_three_ways<T: Real>(
         }
         by_stage.resolve(&mut a, &inverse_masses);
         let moved = b.positions.clone();
-        resolve_one_by_one(&one_by_one, &mut b, &inverse_masses);
+        resolve_one_by_one(&mut one_by_one, &mut b, &inverse_masses);
         pushed += (0..particles).filter(|&p| b.positions.get(p) != moved.get(p)).count();
-        let (all, near_edges, candidates) = resolve_by_blocks(&by_blocks, &mut d, &inverse_masses, &marked);
+        let (all, near_edges, candidates) =
+            resolve_by_blocks(&mut by_blocks, &mut d, &inverse_masses, &marked);
         (answered, answered_marked) = (answered + all, answered_marked + near_edges);
         marked_candidates += candidates;
         for p in 0..particles {
@@ -796,4 +806,21 @@ fn lanes_answer_particles_over_edges_between_triangles_of_one_plane<T: Real>() {
 fn lanes_answer_particles_resting_over_edges_between_triangles_of_one_plane() {
     lanes_answer_particles_over_edges_between_triangles_of_one_plane::<f64>();
     lanes_answer_particles_over_edges_between_triangles_of_one_plane::<f32>();
+}
+
+/// Particles resting on the top of a solid ball (a closed mesh, whose planes the lanes keep
+/// facing outward): the lanes answer most of them, with the one-particle contacts exactly.
+fn lanes_give_the_one_particle_contacts_on_a_solid<T: Real>() {
+    let ball = icosphere(DVec3::ZERO, 0.5, 3);
+    assert!(ball.is_closed());
+    let top = |x: f64, z: f64| (0.25 - x * x - z * z).sqrt();
+    let place = |_: usize, seed: &mut u64| (0.3 * uniform(seed), 0.3 * uniform(seed), false);
+    let Shares { touching, answered, .. } = stepped_three_ways::<T>(ball, top, &place);
+    assert!(answered as f64 > 0.6 * touching as f64, "lanes answered {answered} of {touching}");
+}
+
+#[test]
+fn a_block_of_particles_resting_on_a_solid_meets_it_in_lanes_as_one_particle_at_a_time() {
+    lanes_give_the_one_particle_contacts_on_a_solid::<f64>();
+    lanes_give_the_one_particle_contacts_on_a_solid::<f32>();
 }

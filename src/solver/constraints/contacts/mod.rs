@@ -66,7 +66,7 @@ use crate::solver::motion::{Motion, Rigid};
 use crate::solver::parallel;
 use crate::solver::state::State;
 
-use nearby_triangles::NearbyTriangles;
+use nearby_triangles::{NearbyBand, NearbyTriangles};
 
 /// The friction coefficient a collider has when the scene gives none.
 pub const DEFAULT_FRICTION: f64 = 0.3;
@@ -237,12 +237,13 @@ impl<T: Real> ShapeIn<T> {
 
     /// Where a particle moving from `start` to `end` (outside at both ends) met the surface, for
     /// the shapes a particle can cross within one step without ending inside; a mesh uses the
-    /// triangles kept near the particle, when given `nearby` (see [`NearbyTriangles`]).
+    /// triangles kept near the particle, when given `nearby` (see [`NearbyTriangles`]) and the
+    /// particle's index in its band.
     fn contact(
         &self,
         start: Vec3<T>,
         end: Vec3<T>,
-        nearby: Option<(&NearbyTriangles, usize)>,
+        nearby: Option<(&mut NearbyBand<T>, usize)>,
     ) -> Option<Surface<T>> {
         match self {
             Self::Sphere(s) => {
@@ -270,8 +271,6 @@ struct ColliderIn<T> {
     motion: Option<Motion>,
     /// For a moving collider, where the step takes it.
     moving: Option<StepMotion>,
-    /// For a mesh, the triangles near each particle.
-    nearby: Option<NearbyTriangles>,
 }
 
 /// Where a moving collider is at the start and at the end of a step.
@@ -287,10 +286,14 @@ impl<T: Real> ColliderIn<T> {
     /// of the collider's surface there (zero for a fixed one). A moving collider is met in its
     /// own frame: the particle's start as seen from where the collider was, its end as seen from
     /// where it is, so that the relative path is tested and a moving surface sweeps up the
-    /// particles in its way.
-    /// `p` is the particle's index.
-    fn contact(&self, start: Vec3<T>, end: Vec3<T>, p: usize) -> Option<(Surface<T>, Vec3<T>)> {
-        let nearby = self.nearby.as_ref().map(|nearby| (nearby, p));
+    /// particles in its way. `nearby` is a mesh's triangles near the band's particles, with the
+    /// particle's index in the band.
+    fn contact(
+        &self,
+        start: Vec3<T>,
+        end: Vec3<T>,
+        nearby: Option<(&mut NearbyBand<T>, usize)>,
+    ) -> Option<(Surface<T>, Vec3<T>)> {
         let Some(m) = self.moving else {
             return self.shape.contact(start, end, nearby).map(|s| (s, Vec3::ZERO));
         };
@@ -312,12 +315,82 @@ impl<T: Real> ColliderIn<T> {
             normal: Vec3::from_dvec3(m.to.rotation * surface.normal.to_dvec3()),
         })
     }
+
+    /// Resolves the contacts of `band`'s particles with this collider, with `nearby` its
+    /// triangles near them for a mesh. Returns whether any particle was touched.
+    fn resolve_band(&self, mut band: Band<T>, mut nearby: Option<NearbyBand<T>>) -> bool {
+        let count = band.inverse_masses.len();
+        let whole = count - count % LANES;
+        let mut touched = false;
+        match (&self.shape, self.moving, nearby.as_mut()) {
+            (ShapeIn::Plane(plane), None, _) => {
+                for block in (0..whole).step_by(LANES) {
+                    let (positions, velocities) = (
+                        band.positions.each_mut().map(|a| &mut **a),
+                        band.velocities.each_mut().map(|a| &mut **a),
+                    );
+                    let (friction, restitution) = (self.friction, self.restitution);
+                    touched |= plane.resolve_lanes(
+                        positions,
+                        velocities,
+                        band.inverse_masses,
+                        block,
+                        friction,
+                        restitution,
+                    );
+                }
+            }
+            (ShapeIn::Mesh(mesh), None, Some(nearby)) => {
+                // The lanes first, over a run of blocks, then the particles they left, one at a
+                // time: particles are independent, so the order changes nothing.
+                const RUN: usize = 64;
+                let mut rest = [0u8; RUN];
+                for first in (0..whole).step_by(RUN * LANES) {
+                    let rest = &mut rest[..RUN.min((whole - first) / LANES)];
+                    let (friction, restitution) = (self.friction, self.restitution);
+                    touched |= mesh_lanes::resolve_blocks(
+                        mesh,
+                        nearby,
+                        &mut band,
+                        first,
+                        rest,
+                        friction,
+                        restitution,
+                    );
+                    for (k, &rest) in rest.iter().enumerate().filter(|&(_, &rest)| rest != 0) {
+                        let block = first + k * LANES;
+                        let positions = band.positions.each_ref().map(|a| &**a);
+                        let reaches = self.shape.reaches_lanes(band.start, positions, block);
+                        for lane in (0..LANES).filter(|&lane| (rest >> lane) & 1 == 1 && reaches[lane]) {
+                            touched |= band.contact(self, Some(nearby), block + lane);
+                        }
+                    }
+                }
+            }
+            (shape, moving, mut nearby) => {
+                for block in (0..whole).step_by(LANES) {
+                    // A moving collider's particles are seen from its frame one by one.
+                    let candidates = match moving {
+                        None => {
+                            shape.reaches_lanes(band.start, band.positions.each_ref().map(|a| &**a), block)
+                        }
+                        Some(_) => [true; LANES],
+                    };
+                    for lane in (0..LANES).filter(|&lane| candidates[lane]) {
+                        touched |= band.contact(self, nearby.as_deref_mut(), block + lane);
+                    }
+                }
+            }
+        }
+        for p in whole..count {
+            touched |= band.contact(self, nearby.as_mut(), p);
+        }
+        touched
+    }
 }
 
-/// One band's particles, from particle `first`: their start-of-step positions, their state
-/// and inverse masses.
+/// One band's particles: their start-of-step positions, their state and inverse masses.
 struct Band<'a, T> {
-    first: usize,
     start: [&'a [T]; 3],
     positions: [&'a mut [T]; 3],
     velocities: [&'a mut [T]; 3],
@@ -325,14 +398,28 @@ struct Band<'a, T> {
 }
 
 impl<T: Real> Band<'_, T> {
-    /// Resolves particle `p`'s contact with `c`, if it has one; pinned particles have none.
-    fn contact(&mut self, c: &ColliderIn<T>, p: usize) -> bool {
+    /// The first `count` particles, borrowed, every array cut to that length: a loop over them
+    /// checks a block's bounds once.
+    #[inline(always)]
+    fn first(&mut self, count: usize) -> Band<'_, T> {
+        let ([sx, sy, sz], [x, y, z], [u, v, w]) = (self.start, &mut self.positions, &mut self.velocities);
+        Band {
+            start: [&sx[..count], &sy[..count], &sz[..count]],
+            positions: [&mut x[..count], &mut y[..count], &mut z[..count]],
+            velocities: [&mut u[..count], &mut v[..count], &mut w[..count]],
+            inverse_masses: &self.inverse_masses[..count],
+        }
+    }
+
+    /// Resolves particle `p`'s contact with `c`, if it has one, with `nearby` the mesh's
+    /// triangles near the band's particles; pinned particles have none.
+    fn contact(&mut self, c: &ColliderIn<T>, nearby: Option<&mut NearbyBand<T>>, p: usize) -> bool {
         if self.inverse_masses[p] == T::ZERO {
             return false;
         }
         let at = |axes: [&[T]; 3]| Vec3::new(axes[0][p], axes[1][p], axes[2][p]);
         let end = at(self.positions.each_ref().map(|a| &**a));
-        let Some((surface, surface_velocity)) = c.contact(at(self.start), end, self.first + p) else {
+        let Some((surface, surface_velocity)) = c.contact(at(self.start), end, nearby.map(|n| (n, p))) else {
             return false;
         };
         // The response acts on the velocity relative to the surface.
@@ -352,6 +439,8 @@ impl<T: Real> Band<'_, T> {
 #[derive(Clone, Debug)]
 pub(crate) struct Contacts<T> {
     colliders: Vec<ColliderIn<T>>,
+    /// Per collider, for a mesh, the triangles near each particle.
+    nearby: Vec<Option<NearbyTriangles<T>>>,
     start: Vectors<T>,
 }
 
@@ -361,6 +450,10 @@ impl<T: Real> Contacts<T> {
         if colliders.is_empty() {
             return None;
         }
+        let nearby = colliders
+            .iter()
+            .map(|c| matches!(c.shape, Shape::Mesh { .. }).then(|| NearbyTriangles::new(particles)))
+            .collect();
         let colliders = colliders
             .iter()
             .map(|c| ColliderIn {
@@ -369,10 +462,9 @@ impl<T: Real> Contacts<T> {
                 restitution: T::from_f64(c.restitution),
                 moving: c.motion.as_ref().map(|m| StepMotion { from: m.at(0.0), to: m.at(0.0), dt: 1.0 }),
                 motion: c.motion.clone(),
-                nearby: matches!(c.shape, Shape::Mesh { .. }).then(|| NearbyTriangles::new(particles)),
             })
             .collect();
-        Some(Self { colliders, start: Vectors::zeros(particles) })
+        Some(Self { colliders, nearby, start: Vectors::zeros(particles) })
     }
 
     /// Remembers where the particles are before a step moves them.
@@ -412,78 +504,35 @@ impl<T: Real> Contacts<T> {
     /// Resolves every contact of the step that moved the particles from the positions given to
     /// [`begin_step`](Self::begin_step) to `state`. Returns whether any particle was touched.
     ///
-    /// Each particle meets the colliders in order and alone, so a large state is cut into bands
-    /// of particles on the solver's threads with the same result. Within a band, a block of
-    /// [`LANES`] particles is first tested against a collider side by side, in vector lanes, by
-    /// the cheap test its exact contact starts with ([`ShapeIn::reaches_lanes`]); only the
-    /// particles that pass take the exact, branching test.
-    pub fn resolve(&self, state: &mut State<T>, inverse_masses: &[T]) -> bool {
+    /// Each particle meets the colliders in order and alone, so the colliders are met one after
+    /// the other, each over every particle, and a large state is cut into bands of particles on
+    /// the solver's threads, with the same result. Within a band, a block of [`LANES`]
+    /// particles is first tested against a collider side by side, in vector lanes, by the cheap
+    /// test its exact contact starts with ([`ShapeIn::reaches_lanes`]); only the particles that
+    /// pass take the exact, branching test.
+    pub fn resolve(&mut self, state: &mut State<T>, inverse_masses: &[T]) -> bool {
         let n = inverse_masses.len();
         let band = n.div_ceil(parallel::band_count(n, n, 1));
         let touched = AtomicBool::new(false);
-        let [x, y, z] = state.positions.axes_mut();
-        let [u, v, w] = state.velocities.axes_mut();
-        parallel::in_bands([x, y, z, u, v, w], n, 1, band, &|first, count, [x, y, z, u, v, w]| {
-            let particles = first..first + count;
-            let band = Band {
-                first,
-                start: self.start.range(particles.clone()),
-                positions: [x, y, z],
-                velocities: [u, v, w],
-                inverse_masses: &inverse_masses[particles],
-            };
-            if self.resolve_band(band) {
-                touched.store(true, Ordering::Relaxed);
-            }
-        });
-        touched.into_inner()
-    }
-
-    fn resolve_band(&self, mut band: Band<T>) -> bool {
-        let count = band.inverse_masses.len();
-        let mut touched = false;
-        for block in (0..count).step_by(LANES) {
-            let lanes = LANES.min(count - block);
-            for c in &self.colliders {
-                if let (ShapeIn::Plane(plane), None, LANES) = (&c.shape, c.moving, lanes) {
-                    let (positions, velocities) = (
-                        band.positions.each_mut().map(|a| &mut **a),
-                        band.velocities.each_mut().map(|a| &mut **a),
-                    );
-                    let (friction, restitution) = (c.friction, c.restitution);
-                    touched |= plane.resolve_lanes(
-                        positions,
-                        velocities,
-                        band.inverse_masses,
-                        block,
-                        friction,
-                        restitution,
-                    );
-                    continue;
-                }
-                if let (ShapeIn::Mesh(mesh), Some(nearby), None, LANES) =
-                    (&c.shape, &c.nearby, c.moving, lanes)
-                {
-                    let resolved =
-                        mesh_lanes::resolve_lanes(mesh, nearby, &mut band, block, c.friction, c.restitution);
-                    touched |= resolved.touched;
-                    for lane in (0..LANES).filter(|&lane| resolved.rest[lane]) {
-                        touched |= band.contact(c, block + lane);
-                    }
-                    continue;
-                }
-                // A moving collider's particles are seen from its frame one by one.
-                let candidates = if lanes == LANES && c.moving.is_none() {
-                    c.shape.reaches_lanes(band.start, band.positions.each_ref().map(|a| &**a), block)
-                } else {
-                    [true; LANES]
+        let start = &self.start;
+        for (c, nearby) in self.colliders.iter().zip(&mut self.nearby) {
+            let [x, y, z] = state.positions.axes_mut();
+            let [u, v, w] = state.velocities.axes_mut();
+            let rows = ([x, y, z, u, v, w], nearby.as_mut().map(NearbyTriangles::band));
+            parallel::in_bands(rows, n, 1, band, &|first, count, ([x, y, z, u, v, w], nearby)| {
+                let particles = first..first + count;
+                let band = Band {
+                    start: start.range(particles.clone()),
+                    positions: [x, y, z],
+                    velocities: [u, v, w],
+                    inverse_masses: &inverse_masses[particles],
                 };
-                for lane in (0..lanes).filter(|&lane| candidates[lane]) {
-                    touched |= band.contact(c, block + lane);
+                if c.resolve_band(band, nearby) {
+                    touched.store(true, Ordering::Relaxed);
                 }
-            }
+            });
         }
-        touched
+        touched.into_inner()
     }
 
     /// The names of the collider stages, each type once, in the order they first appear.

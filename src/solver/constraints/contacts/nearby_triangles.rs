@@ -28,19 +28,20 @@
 //! such triangles is then answered as one over a face, where the two would otherwise be equally
 //! near.
 //!
-//! Each particle's entries are read and written only by the band of particles that holds it:
-//! relaxed atomics (plain loads and stores) let the bands share the arrays without cutting them.
-//! Each value has its own array, so that a block of consecutive particles reads each from
-//! consecutive memory.
+//! The arrays belong to the stage and are lent out a band of particles at a time
+//! ([`NearbyTriangles::band`], cut between particles as the state is), so a band reads and writes
+//! its particles' entries as plain numbers. Each value has its own array, so that a block of
+//! consecutive particles reads each as one vector load; with it a particle keeps the plane of
+//! its anchor's nearest triangle, so that the block needs no gather.
 //!
 //! [`mesh_lanes`]: super::mesh_lanes
 
-use std::sync::atomic::{AtomicU8, AtomicU32, Ordering::Relaxed};
-
+use crate::solver::constraints::contacts::mesh_lanes::FacePlanes;
 use crate::solver::constraints::contacts::triangle_bvh::TriangleBvh;
 use crate::solver::forces::spring_blocks::LANES;
 use crate::solver::math::real::Real;
 use crate::solver::math::vec3::Vec3;
+use crate::solver::parallel::Rows;
 
 /// The most triangles kept for one particle.
 pub(super) const CAPACITY: usize = 16;
@@ -55,7 +56,7 @@ const NONE: u8 = u8::MAX;
 /// takes it to the limit.
 const SAFETY: f64 = 0.99;
 
-/// The triangles kept for a particle's path, as [`NearbyTriangles::kept`] gives them.
+/// The triangles kept for a particle's path, as [`NearbyBand::kept`] gives them.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(super) struct Kept {
     /// How many slots were copied: every triangle gathered, or only the one that can be nearest.
@@ -66,80 +67,160 @@ pub(super) struct Kept {
     pub over_face: bool,
 }
 
-/// The triangles near each particle, by their slots in the hierarchy's leaf order.
-#[derive(Debug)]
-pub(super) struct NearbyTriangles {
-    /// Per axis, each particle's anchor, as `f32` bits.
-    anchors: [Vec<AtomicU32>; 3],
-    /// Per particle, as `f32` bits: the square of the distance from its anchor within which its
-    /// path crosses nothing.
-    clear: Vec<AtomicU32>,
-    /// Per particle, as `f32` bits: the square of the distance from its anchor within which its
-    /// end's nearest point is its foot on the plane of the anchor's nearest triangle; zero when
-    /// nothing usable is gathered.
-    settled: Vec<AtomicU32>,
+/// The triangles near each particle, by their slots in the hierarchy's leaf order. What is kept
+/// depends only on the anchors and the mesh, so a copy holds as well as the original.
+#[derive(Clone, Debug)]
+pub(super) struct NearbyTriangles<T> {
+    /// Per axis, each particle's anchor.
+    anchors: [Vec<f32>; 3],
+    /// Per particle, the square of the distance from its anchor within which its path crosses
+    /// nothing.
+    clear: Vec<f32>,
+    /// Per particle, the square of the distance from its anchor within which its end's nearest
+    /// point is its foot on the plane of the anchor's nearest triangle; zero when nothing usable
+    /// is gathered.
+    settled: Vec<f32>,
     /// Per particle, the slot of its anchor's nearest triangle.
-    nearest: Vec<AtomicU32>,
+    nearest: Vec<u32>,
+    /// Per particle, the plane of that triangle as [`FacePlanes`] keeps it: its normal's three
+    /// components, then its offset.
+    planes: [Vec<T>; 4],
     /// How many of a particle's slots are in use, or [`NONE`].
-    counts: Vec<AtomicU8>,
+    counts: Vec<u8>,
     /// [`CAPACITY`] slots per particle.
-    slots: Vec<AtomicU32>,
+    slots: Vec<u32>,
+}
+
+impl<T: Real> NearbyTriangles<T> {
+    /// Room for `particles` particles, with nothing gathered.
+    pub fn new(particles: usize) -> Self {
+        Self {
+            anchors: [(); 3].map(|_| vec![0.0; particles]),
+            clear: vec![0.0; particles],
+            settled: vec![0.0; particles],
+            nearest: vec![0; particles],
+            planes: [(); 4].map(|_| vec![T::ZERO; particles]),
+            counts: vec![NONE; particles],
+            slots: vec![0; particles * CAPACITY],
+        }
+    }
+
+    /// Every particle's entries, to be cut into bands as the state is.
+    pub fn band(&mut self) -> NearbyBand<'_, T> {
+        NearbyBand {
+            anchors: self.anchors.each_mut().map(Vec::as_mut_slice),
+            clear: &mut self.clear,
+            settled: &mut self.settled,
+            nearest: &mut self.nearest,
+            planes: self.planes.each_mut().map(Vec::as_mut_slice),
+            counts: &mut self.counts,
+            slots: &mut self.slots,
+        }
+    }
+}
+
+/// The entries of a band of consecutive particles, which it indexes from its first particle.
+pub(super) struct NearbyBand<'a, T> {
+    anchors: [&'a mut [f32]; 3],
+    clear: &'a mut [f32],
+    settled: &'a mut [f32],
+    nearest: &'a mut [u32],
+    planes: [&'a mut [T]; 4],
+    counts: &'a mut [u8],
+    slots: &'a mut [u32],
+}
+
+impl<T: Send> Rows for NearbyBand<'_, T> {
+    fn split_at(self, at: usize) -> (Self, Self) {
+        let (anchors, later_anchors) = Rows::split_at(self.anchors, at);
+        let (clear, later_clear) = self.clear.split_at_mut(at);
+        let (settled, later_settled) = self.settled.split_at_mut(at);
+        let (nearest, later_nearest) = self.nearest.split_at_mut(at);
+        let (planes, later_planes) = Rows::split_at(self.planes, at);
+        let (counts, later_counts) = self.counts.split_at_mut(at);
+        let (slots, later_slots) = self.slots.split_at_mut(at * CAPACITY);
+        (
+            Self { anchors, clear, settled, nearest, planes, counts, slots },
+            Self {
+                anchors: later_anchors,
+                clear: later_clear,
+                settled: later_settled,
+                nearest: later_nearest,
+                planes: later_planes,
+                counts: later_counts,
+                slots: later_slots,
+            },
+        )
+    }
 }
 
 /// What a block of [`LANES`] consecutive particles keeps for the one-triangle case, in the
 /// simulation's precision: the anchors per axis, the squared distances of [`NearbyTriangles`]'s
-/// `clear` and `settled`, and the slot of the anchor's nearest triangle.
-pub(super) struct SettledLanes<T> {
+/// `clear` and `settled`, and the plane of the anchor's nearest triangle.
+pub(super) struct SettledLanes<'a, T> {
     pub anchors: [[T; LANES]; 3],
     pub clear: [T; LANES],
     pub settled: [T; LANES],
-    pub nearest: [u32; LANES],
+    /// The normal's three components, then the offset.
+    pub planes: [&'a [T; LANES]; 4],
 }
 
-impl NearbyTriangles {
-    /// Room for `particles` particles, with nothing gathered.
-    pub fn new(particles: usize) -> Self {
-        let zeros = || (0..particles).map(|_| AtomicU32::new(0)).collect::<Vec<_>>();
-        Self {
-            anchors: [zeros(), zeros(), zeros()],
-            clear: zeros(),
-            settled: zeros(),
-            nearest: zeros(),
-            counts: (0..particles).map(|_| AtomicU8::new(NONE)).collect(),
-            slots: (0..particles * CAPACITY).map(|_| AtomicU32::new(0)).collect(),
+/// What the particles of a band keep for the one-triangle case, every array of one length, so
+/// that a block's bounds are checked once.
+pub(super) struct Settled<'a, T> {
+    anchors: [&'a [f32]; 3],
+    clear: &'a [f32],
+    settled: &'a [f32],
+    planes: [&'a [T]; 4],
+}
+
+impl<T: Real> Settled<'_, T> {
+    /// The one-triangle values of the [`LANES`] particles from `first`, as
+    /// [`NearbyBand::kept`] reads them.
+    #[inline(always)]
+    pub fn lanes(&self, first: usize) -> SettledLanes<'_, T> {
+        // Written out rather than mapped over the arrays, which is left as a call.
+        #[inline(always)]
+        fn lanes<T: Real>(values: &[f32], first: usize) -> [T; LANES] {
+            let values: &[f32; LANES] = values[first..first + LANES].try_into().expect("a whole block");
+            let mut lanes = [T::ZERO; LANES];
+            for (lane, &x) in lanes.iter_mut().zip(values) {
+                *lane = T::from_f64(x as f64);
+            }
+            lanes
+        }
+        #[inline(always)]
+        fn block<T>(values: &[T], first: usize) -> &[T; LANES] {
+            values[first..first + LANES].try_into().expect("a whole block")
+        }
+        let ([x, y, z], [nx, ny, nz, offsets]) = (&self.anchors, &self.planes);
+        SettledLanes {
+            anchors: [lanes(x, first), lanes(y, first), lanes(z, first)],
+            clear: lanes(self.clear, first),
+            settled: lanes(self.settled, first),
+            planes: [block(nx, first), block(ny, first), block(nz, first), block(offsets, first)],
         }
     }
+}
 
-    /// The one-triangle values of the [`LANES`] particles from `first`, as
-    /// [`kept`](Self::kept) reads them.
+impl<T: Real> NearbyBand<'_, T> {
+    /// The one-triangle values of the band's first `count` particles.
     #[inline(always)]
-    pub fn settled_lanes<T: Real>(&self, first: usize) -> SettledLanes<T> {
-        let real = |bits: &AtomicU32| T::from_f64(f32::from_bits(bits.load(Relaxed)) as f64);
-        let mut lanes = SettledLanes {
-            anchors: [[T::ZERO; LANES]; 3],
-            clear: [T::ZERO; LANES],
-            settled: [T::ZERO; LANES],
-            nearest: [0; LANES],
-        };
-        let [x, y, z] = self.anchors.each_ref().map(|axis| &axis[first..first + LANES]);
-        let (clear, settled) = (&self.clear[first..first + LANES], &self.settled[first..first + LANES]);
-        let nearest = &self.nearest[first..first + LANES];
-        for lane in 0..LANES {
-            lanes.anchors[0][lane] = real(&x[lane]);
-            lanes.anchors[1][lane] = real(&y[lane]);
-            lanes.anchors[2][lane] = real(&z[lane]);
-            lanes.clear[lane] = real(&clear[lane]);
-            lanes.settled[lane] = real(&settled[lane]);
-            lanes.nearest[lane] = nearest[lane].load(Relaxed);
+    pub fn settled(&self, count: usize) -> Settled<'_, T> {
+        let ([x, y, z], [nx, ny, nz, offsets]) = (&self.anchors, &self.planes);
+        Settled {
+            anchors: [&x[..count], &y[..count], &z[..count]],
+            clear: &self.clear[..count],
+            settled: &self.settled[..count],
+            planes: [&nx[..count], &ny[..count], &nz[..count], &offsets[..count]],
         }
-        lanes
     }
 
     /// The triangles gathered for particle `p` that its path from `start` to `end` can meet,
     /// copied into `slots`, when the path stays within `keep` of its anchor: all of them, or
     /// only the anchor's nearest when the path crosses none and ends that near the anchor.
     #[inline]
-    pub fn kept<T: Real>(
+    pub fn kept(
         &self,
         p: usize,
         start: Vec3<T>,
@@ -147,7 +228,7 @@ impl NearbyTriangles {
         keep: T,
         slots: &mut [u32; CAPACITY],
     ) -> Option<Kept> {
-        let count = self.counts[p].load(Relaxed);
+        let count = self.counts[p];
         if count == NONE {
             return None;
         }
@@ -157,33 +238,31 @@ impl NearbyTriangles {
         if !near {
             return None;
         }
-        let real = |bits: &AtomicU32| T::from_f64(f32::from_bits(bits.load(Relaxed)) as f64);
-        let clear = from.max(to) < real(&self.clear[p]);
-        if clear && count > 0 && to < real(&self.settled[p]) {
-            slots[0] = self.nearest[p].load(Relaxed);
+        let real = |x: f32| T::from_f64(x as f64);
+        let clear = from.max(to) < real(self.clear[p]);
+        if clear && count > 0 && to < real(self.settled[p]) {
+            slots[0] = self.nearest[p];
             return Some(Kept { count: 1, clear, over_face: true });
         }
         let count = count as usize;
-        let kept = &self.slots[p * CAPACITY..p * CAPACITY + count];
-        for (slot, kept) in slots.iter_mut().zip(kept) {
-            *slot = kept.load(Relaxed);
-        }
+        slots[..count].copy_from_slice(&self.slots[p * CAPACITY..p * CAPACITY + count]);
         Some(Kept { count, clear, over_face: false })
     }
 
     /// Gathers the triangles of `bvh` within `reach` of `at` for particle `p`, and copies them
     /// into `slots`: how many there are, or `None` when more than [`CAPACITY`] are that near.
-    pub fn gather<T: Real>(
-        &self,
+    /// `faces` are the planes of `bvh`'s triangles.
+    pub fn gather(
+        &mut self,
         p: usize,
         at: Vec3<T>,
         bvh: &TriangleBvh<T>,
+        faces: &FacePlanes<T>,
         reach: T,
         slots: &mut [u32; CAPACITY],
     ) -> Option<usize> {
-        let rounded = at.to_array().map(|x| x.to_f64() as f32);
-        for (axis, x) in self.anchors.iter().zip(rounded) {
-            axis[p].store(x.to_bits(), Relaxed);
+        for (axis, x) in self.anchors.iter_mut().zip(at.to_array()) {
+            axis[p] = x.to_f64() as f32;
         }
         let mut count = 0;
         let all = bvh.within(self.anchor(p), reach, |slot| {
@@ -195,22 +274,20 @@ impl NearbyTriangles {
             true
         });
         if !all {
-            self.counts[p].store(NONE, Relaxed);
-            self.settled[p].store(0, Relaxed);
+            self.counts[p] = NONE;
+            self.settled[p] = 0.0;
             return None;
         }
-        for (kept, &slot) in self.slots[p * CAPACITY..].iter().zip(&slots[..count]) {
-            kept.store(slot, Relaxed);
-        }
-        self.counts[p].store(count as u8, Relaxed);
-        self.bound(p, bvh, &slots[..count], reach);
+        self.slots[p * CAPACITY..p * CAPACITY + count].copy_from_slice(&slots[..count]);
+        self.counts[p] = count as u8;
+        self.bound(p, bvh, faces, &slots[..count], reach);
         Some(count)
     }
 
-    /// Keeps particle `p`'s bounds, from the distances of its anchor to the triangles gathered
-    /// within `reach` of it (every triangle nearer than `reach`).
-    fn bound<T: Real>(&self, p: usize, bvh: &TriangleBvh<T>, slots: &[u32], reach: T) {
-        let anchor = self.anchor::<T>(p);
+    /// Keeps particle `p`'s bounds and nearest plane, from the distances of its anchor to the
+    /// triangles gathered within `reach` of it (every triangle nearer than `reach`).
+    fn bound(&mut self, p: usize, bvh: &TriangleBvh<T>, faces: &FacePlanes<T>, slots: &[u32], reach: T) {
+        let anchor = self.anchor(p);
         let distance = |slot: u32| bvh.distance_squared(slot, anchor).sqrt();
         let (mut nearest, mut first) = (0, reach);
         for &slot in slots {
@@ -230,22 +307,18 @@ impl NearbyTriangles {
         let clear = first * safety;
         let over_face = if slots.is_empty() { T::ZERO } else { bvh.flat_margin(slots, nearest, anchor) };
         let settled = ((second - first) * T::from_f64(0.5)).min(over_face).max(T::ZERO) * safety;
-        let bits = |x: T| (x.to_f64() as f32).to_bits();
-        self.clear[p].store(bits(clear * clear), Relaxed);
-        self.settled[p].store(bits(settled * settled), Relaxed);
-        self.nearest[p].store(nearest, Relaxed);
+        let single = |x: T| x.to_f64() as f32;
+        self.clear[p] = single(clear * clear);
+        self.settled[p] = single(settled * settled);
+        self.nearest[p] = nearest;
+        let (normal, offset) = faces.plane(nearest);
+        for (values, x) in self.planes.iter_mut().zip([normal.x, normal.y, normal.z, offset]) {
+            values[p] = x;
+        }
     }
 
-    fn anchor<T: Real>(&self, p: usize) -> Vec3<T> {
-        let [x, y, z] =
-            self.anchors.each_ref().map(|axis| T::from_f64(f32::from_bits(axis[p].load(Relaxed)) as f64));
+    fn anchor(&self, p: usize) -> Vec3<T> {
+        let [x, y, z] = self.anchors.each_ref().map(|axis| T::from_f64(axis[p] as f64));
         Vec3::new(x, y, z)
-    }
-}
-
-/// A copy starts with nothing gathered, which only costs its first steps a walk.
-impl Clone for NearbyTriangles {
-    fn clone(&self) -> Self {
-        Self::new(self.counts.len())
     }
 }
