@@ -20,7 +20,8 @@
 //! ball within the step, or ended past the centre (where the nearest surface point is on the far
 //! side), is put where it first met the surface. A path that only grazes the surface (as a particle
 //! sliding over the ball does) is not a passage. The start-of-step positions live in a buffer made
-//! once, only when a scene has colliders. Boxes and cylinders are tested at the end of the step.
+//! once, only when a scene has colliders, and are copied into it only when a collider tests paths
+//! (a sphere, a mesh, or a moving collider). Boxes and cylinders are tested at the end of the step.
 //! A triangle mesh (`mesh.rs`, through the hierarchy of `triangle_bvh.rs`) tests the segment
 //! against its triangles, so that a fast particle stops even at a sheet with no inside.
 //!
@@ -441,7 +442,11 @@ pub(crate) struct Contacts<T> {
     colliders: Vec<ColliderIn<T>>,
     /// Per collider, for a mesh, the triangles near each particle.
     nearby: Vec<Option<NearbyTriangles<T>>>,
+    /// Where the particles started the step, copied only when `swept`: fixed planes, boxes and
+    /// cylinders test the end of the step alone and never read it.
     start: Vectors<T>,
+    /// Whether a collider tests the particles' paths: a sphere, a mesh, or any moving collider.
+    swept: bool,
 }
 
 impl<T: Real> Contacts<T> {
@@ -450,6 +455,9 @@ impl<T: Real> Contacts<T> {
         if colliders.is_empty() {
             return None;
         }
+        let swept = colliders
+            .iter()
+            .any(|c| c.motion.is_some() || matches!(c.shape, Shape::Sphere { .. } | Shape::Mesh { .. }));
         let nearby = colliders
             .iter()
             .map(|c| matches!(c.shape, Shape::Mesh { .. }).then(|| NearbyTriangles::new(particles)))
@@ -464,12 +472,15 @@ impl<T: Real> Contacts<T> {
                 motion: c.motion.clone(),
             })
             .collect();
-        Some(Self { colliders, nearby, start: Vectors::zeros(particles) })
+        Some(Self { colliders, nearby, start: Vectors::zeros(particles), swept })
     }
 
-    /// Remembers where the particles are before a step moves them.
+    /// Remembers where the particles are before a step moves them, when a collider tests their
+    /// paths.
     pub fn begin_step(&mut self, positions: &Vectors<T>) {
-        self.start.copy_from(positions);
+        if self.swept {
+            self.start.copy_from(positions);
+        }
     }
 
     /// Whether any collider moves.

@@ -7,6 +7,7 @@ use super::*;
 use crate::solver::bodies::Lattice;
 use crate::solver::integrators::IntegratorKind;
 use crate::solver::model::{Model, SpringParams};
+use crate::solver::motion::{Motion, Rigid};
 use crate::solver::simulation::{Config, Simulation};
 
 fn plane(friction: f64, restitution: f64) -> Collider {
@@ -348,4 +349,30 @@ fn resolved_in_bands_and_lanes_as_alone<T: Real>() {
     let touched = crate::solver::parallel::install(|| contacts.resolve(&mut actual, &inverse_masses));
     assert_eq!(touched, expected_touched);
     assert!(actual.positions == expected.positions && actual.velocities == expected.velocities);
+}
+
+#[test]
+fn the_start_of_a_step_is_kept_only_for_colliders_that_test_paths() {
+    let mut positions = Vectors::<f64>::zeros(3);
+    for p in 0..3 {
+        positions.set(p, Vec3::new(p as f64, 1.0, 0.5));
+    }
+    let fixed = |shape| Collider { shape, friction: 0.3, restitution: 0.0, motion: None };
+    let unit_box = Shape::Box { center: DVec3::ZERO, half_extents: DVec3::ONE };
+    let cylinder = Shape::Cylinder { center: DVec3::ZERO, radius: 1.0, height: 1.0 };
+    let ball = Shape::Sphere { center: DVec3::ZERO, radius: 1.0 };
+    let sliding =
+        Motion::Velocity { start: Rigid::IDENTITY, velocity: DVec3::X, angular_velocity: DVec3::ZERO };
+    let moving_plane = Collider { motion: Some(sliding), ..plane(0.3, 0.0) };
+    for (colliders, swept) in [
+        (vec![plane(0.3, 0.0), fixed(unit_box), fixed(cylinder)], false),
+        (vec![plane(0.3, 0.0), fixed(ball)], true),
+        (vec![moving_plane], true),
+    ] {
+        let mut contacts = Contacts::<f64>::new(&colliders, 3).expect("there are colliders");
+        contacts.begin_step(&positions);
+        let kept: Vec<Vec3<f64>> = contacts.start.iter().collect();
+        let expected = if swept { positions.iter().collect() } else { vec![Vec3::ZERO; 3] };
+        assert_eq!(kept, expected, "{colliders:?}");
+    }
 }
