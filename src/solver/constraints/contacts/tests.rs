@@ -7,7 +7,6 @@ use super::*;
 use crate::solver::bodies::Lattice;
 use crate::solver::integrators::IntegratorKind;
 use crate::solver::model::{Model, SpringParams};
-use crate::solver::motion::{Motion, Rigid};
 use crate::solver::simulation::{Config, Simulation};
 
 fn plane(friction: f64, restitution: f64) -> Collider {
