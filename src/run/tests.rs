@@ -456,12 +456,12 @@ fn a_cloth_held_by_a_collider_is_at_rest() {
         "colliders": [{"type": "plane", "friction": 1.0}], "error_estimate": "none",
         "output": {"frames": "final"}}));
     assert_eq!((r.stats.stopped_at_rest, r.stats.steps), (Some(0.064), 64));
-    // Draped over a ball onto the floor (the scene of examples/drape_sphere.json, run longer):
-    // the stretched springs pull and the ball pushes back. It stops once settled, where a run
-    // to the end leaves it.
+    // Draped over a round table onto the floor (examples/tablecloth.json, run longer): the
+    // stretched springs pull and the table pushes back. It stops once settled, where a run to
+    // the end leaves it. (The drape over a ball of examples/drape_sphere.json does not settle:
+    // it slides off the ball over seconds, at small steps too.)
     let scene = |stop: Option<f64>| {
-        let mut scene: Value =
-            serde_json::from_str(include_str!("../../examples/drape_sphere.json")).unwrap();
+        let mut scene: Value = serde_json::from_str(include_str!("../../examples/tablecloth.json")).unwrap();
         scene["duration"] = json!(6.0);
         scene["stop_at_rest"] = json!(stop);
         scene["error_estimate"] = json!("none");
@@ -608,11 +608,11 @@ fn the_equilibrium_solve_stops_when_its_run_is_interrupted() {
     assert_eq!(crate::solver::equilibrium(model, config, &positions, 0.0, &raised), None);
 }
 
-/// A 0.5 m cotton cloth of `n × n` hung from its two top corners, run to rest, with the estimate
-/// asked for.
-fn hanging_material_cloth(n: usize, estimate: &str, orientation: &str) -> Recording {
-    run(json!({"duration": 30.0, "dt": 0.01, "integrator": "implicit_euler", "drag": 1.0,
-        "stop_at_rest": 1e-3, "error_estimate": estimate,
+/// A 0.5 m cotton cloth of `n × n` hung from its two top corners, run to `until` seconds or, with
+/// none, to rest, with the estimate asked for.
+fn hanging_material_cloth(n: usize, estimate: &str, orientation: &str, until: Option<f64>) -> Recording {
+    run(json!({"duration": until.unwrap_or(30.0), "dt": 0.01, "integrator": "implicit_euler", "drag": 1.0,
+        "stop_at_rest": until.is_none().then_some(1e-3), "error_estimate": estimate,
         "bodies": [{"type": "cloth", "size": [0.5, 0.5], "resolution": [n, n], "orientation": orientation,
             "center": [0, 1, 0], "material": "cotton", "pin": [[0, 0], [n - 1, 0]]}],
         "output": {"frames": "final"}}))
@@ -637,10 +637,16 @@ fn distance_to_finer(coarse: &Recording, n: usize, finer: &Recording, step: usiz
 
 /// The spatial estimate and what it estimates: the largest and root-mean-square distance from
 /// the run's final particles to those of a reference 4 times as fine, and the estimate's own.
-fn spatial_estimate_against_reference(n: usize, orientation: &str) -> ((f64, f64), (f64, f64), f64, bool) {
-    let reference = hanging_material_cloth(4 * n - 3, "none", orientation);
-    let r = hanging_material_cloth(n, "resolution", orientation);
-    assert!(r.stats.stopped_at_rest.is_some() && reference.stats.stopped_at_rest.is_some());
+fn spatial_estimate_against_reference(
+    n: usize,
+    orientation: &str,
+    until: Option<f64>,
+) -> ((f64, f64), (f64, f64), f64, bool) {
+    let reference = hanging_material_cloth(4 * n - 3, "none", orientation, until);
+    let r = hanging_material_cloth(n, "resolution", orientation, until);
+    if until.is_none() {
+        assert!(r.stats.stopped_at_rest.is_some() && reference.stats.stopped_at_rest.is_some());
+    }
     let error = r.stats.error.clone().expect("an estimate");
     let EstimateOutcome::Estimate { max, rms, observed_order: Some(order), reliable: Some(reliable) } =
         error.outcome
@@ -651,16 +657,16 @@ fn spatial_estimate_against_reference(n: usize, orientation: &str) -> ((f64, f64
 }
 
 #[test]
-fn the_spatial_estimate_of_a_hanging_cloth_is_within_a_factor_three_of_its_distance_to_a_finer_one() {
-    // Dropped from horizontal and hung from two corners: at 9², with companions at 5² and 3²,
-    // against 33². The three resolutions show about first order, and the estimate is within a
-    // factor 3 of the distance to the reference (itself short of the true error, the reference
-    // having its own). docs/accuracy.md gives 17² against 65², too slow for a test. The free
-    // edge can fold to either side: at 0.01 s all four resolutions take the same fold, at some
-    // nearby steps one of them takes the other (docs/accuracy.md, "Spatial error").
+fn the_spatial_estimate_of_a_falling_cloth_is_within_a_factor_three_of_its_distance_to_a_finer_one() {
+    // Dropped from horizontal, hung from two corners, 0.35 s into its fall: at 9², with
+    // companions at 5² and 3², against 33². The three resolutions show an order near 0.9, and the
+    // estimate is within a factor 3 of the distance to the reference (itself short of the true
+    // error, the reference having its own). At rest this cloth can fold to either side, and
+    // which fold a resolution takes changes with the step, so its shape at rest is no test of the
+    // estimate (docs/accuracy.md, "Spatial error"); while it falls there is one shape.
     let ((true_max, true_rms), (max, rms), order, reliable) =
-        spatial_estimate_against_reference(9, "horizontal");
-    assert!(reliable && (0.8..1.4).contains(&order), "order {order}");
+        spatial_estimate_against_reference(9, "horizontal", Some(0.35));
+    assert!(reliable && (0.6..1.4).contains(&order), "order {order}");
     for (estimate, truth) in [(max, true_max), (rms, true_rms)] {
         assert!((1.0 / 3.0..3.0).contains(&(estimate / truth)), "estimate {estimate} m, distance {truth} m");
     }
@@ -671,7 +677,7 @@ fn a_spatial_estimate_whose_resolutions_are_not_yet_asymptotic_says_so() {
     // Hung from two corners as it starts, vertical: the top edge sags between the corners, and
     // the differences between 17², 9² and 5² grow as the resolution refines (an order below
     // 0), so the estimate is marked unreliable (its value is still near the distance to 65²).
-    let ((true_max, _), (max, _), order, reliable) = spatial_estimate_against_reference(17, "vertical");
+    let ((true_max, _), (max, _), order, reliable) = spatial_estimate_against_reference(17, "vertical", None);
     assert!(!reliable && order < 0.0, "order {order}");
     assert!((0.5..2.0).contains(&(max / true_max)), "estimate {max} m, distance {true_max} m");
 }

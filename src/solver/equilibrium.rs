@@ -10,8 +10,8 @@
 //! distance to the equilibrium of the free particles with the contact set where it lies.
 //!
 //! The displacement solves one linear system with the stiffness, `K δx = r` (`K = -∂f/∂x`, the
-//! springs' blocks of the implicit integrator, compressed springs without their transverse part,
-//! and the bending elements' constant matrix), by conjugate gradients with the held particles
+//! springs' blocks with compressed springs' transverse part dropped, the softest definite
+//! stiffness, and the bending elements' constant matrix), by conjugate gradients with the held particles
 //! filtered out (Baraff and Witkin). To first order `x + δx` is the static solution, so `|δx|`
 //! is how far the state is from the shape it would settle to. The solve looks at the run's
 //! [`Interrupt`] at every iteration, so a cancelled or timed-out run does not wait for it.
@@ -20,7 +20,7 @@ use glam::DVec3;
 
 use crate::solver::constraints::contacts::{Collider, Shape};
 use crate::solver::forces::dynamics::Dynamics;
-use crate::solver::forces::springs::{direction, stiffness_block};
+use crate::solver::forces::springs::{definite_stiffness_block, direction};
 use crate::solver::interrupt::Interrupt;
 use crate::solver::math::sym3::Sym3;
 use crate::solver::math::vec3::Vec3;
@@ -131,7 +131,7 @@ impl<'a> Stiffness<'a> {
             .map(|s| {
                 let (i, j) = (s.i as usize, s.j as usize);
                 let Some((n, l)) = direction(Vec3::from_dvec3(x[j] - x[i])) else { return Sym3::ZERO };
-                let block = stiffness_block(s, n, l);
+                let block = definite_stiffness_block(s, n, l);
                 let [xx, yy, zz, ..] = block.entries();
                 diagonal[i] += (xx + yy + zz) / 3.0;
                 diagonal[j] += (xx + yy + zz) / 3.0;

@@ -58,13 +58,35 @@ pub(crate) fn branch_free_force<T: Real>(k: T, rest: T, c: T, [dx, dy, dz, du, d
     [dx * scale, dy * scale, dz * scale]
 }
 
-/// The stiffness block `K_s` of one spring: `∂f_i/∂x_i = -K_s`, `∂f_i/∂x_j = K_s`.
+/// The stiffness block `K_s` of one spring as implicit Euler's step takes it:
+/// `∂f_i/∂x_i ≈ -K_s`, `∂f_i/∂x_j ≈ K_s`.
 ///
-/// `K_s = k [n nᵀ + α (I - n nᵀ)]` with `α = max(0, 1 - L/l)`: the transverse term is dropped
-/// while the spring is compressed, which keeps `K_s` positive semi-definite (Choi and Ko).
+/// `K_s = k [n nᵀ + α (I - n nᵀ)]` with `α = min(1, |1 - L/l|)`. The exact transverse factor
+/// `1 - L/l` is negative while the spring is compressed: the spring pushes a particle that
+/// leaves its line further out (buckling). Its absolute value keeps `K_s` positive semi-definite
+/// (absolute eigenvalue filtering, Chen et al. 2024), as dropping it would
+/// ([`definite_stiffness_block`], Choi and Ko), but treats that push implicitly: with the term
+/// dropped the push is explicit in the step, and at the frame interval it lifts the compressed
+/// folds of a cloth lying on a collider off it and back every few steps, so the drape never rests
+/// (`docs/performance.md`, "Time to drape"). Only the step's Jacobian changes, never the force,
+/// so the states at rest are the same, and so is the step's limit as it shrinks. The cap at 1
+/// keeps the axial factor `1 - α` at least 0.
 #[inline(always)]
 pub(crate) fn stiffness_block<T: Real>(s: &Spring<T>, n: Vec3<T>, l: T) -> Sym3<T> {
-    let alpha = (T::ONE - s.rest_length / l).max(T::ZERO);
+    block(s, n, (T::ONE - s.rest_length / l).abs().min(T::ONE))
+}
+
+/// The positive semi-definite part of a spring's stiffness `-∂f_i/∂x_i`: the transverse term
+/// dropped while the spring is compressed (Choi and Ko). It is the softest definite stiffness,
+/// the one the distance from equilibrium ([`crate::solver::equilibrium`]) solves with.
+#[inline(always)]
+pub(crate) fn definite_stiffness_block<T: Real>(s: &Spring<T>, n: Vec3<T>, l: T) -> Sym3<T> {
+    block(s, n, (T::ONE - s.rest_length / l).max(T::ZERO))
+}
+
+/// `k [n nᵀ + α (I - n nᵀ)]`, as a rank-one term plus a multiple of the identity.
+#[inline(always)]
+fn block<T: Real>(s: &Spring<T>, n: Vec3<T>, alpha: T) -> Sym3<T> {
     Sym3::outer(n) * (s.stiffness * (T::ONE - alpha)) + Sym3::identity() * (s.stiffness * alpha)
 }
 
@@ -94,4 +116,55 @@ pub fn strain<T: Real>(s: &Spring<T>, x: &Vectors<T>) -> f64 {
 /// The largest strain over all springs (negative if every spring is compressed), or 0 with none.
 pub fn max_strain<T: Real>(springs: &[Spring<T>], x: &Vectors<T>) -> f64 {
     springs.iter().map(|s| strain(s, x)).reduce(f64::max).unwrap_or(0.0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::solver::model::SpringKind;
+
+    /// `K n` along the spring and `K t` across it, for a spring of rest length 1 and `k` 100 at
+    /// length `l` along x, by each block.
+    fn along_and_across(
+        block: fn(&Spring<f64>, Vec3<f64>, f64) -> Sym3<f64>,
+        l: f64,
+    ) -> (Vec3<f64>, Vec3<f64>) {
+        let spring = Spring {
+            i: 0,
+            j: 1,
+            rest_length: 1.0,
+            stiffness: 100.0,
+            damping: 0.0,
+            kind: SpringKind::Structural,
+        };
+        let (n, t) = (Vec3::new(1.0, 0.0, 0.0), Vec3::new(0.0, 0.6, 0.8));
+        let k = block(&spring, n, l);
+        (k.apply(n), k.apply(t))
+    }
+
+    #[test]
+    fn a_stretched_springs_block_is_the_exact_stiffness() {
+        // At l = 1.25: k along the spring, k (1 - L/l) = 20 across it, by both blocks.
+        for block in [stiffness_block, definite_stiffness_block] {
+            let (along, across) = along_and_across(block, 1.25);
+            assert!((along - Vec3::new(100.0, 0.0, 0.0)).length() < 1e-12, "{along:?}");
+            assert!((across - Vec3::new(0.0, 12.0, 16.0)).length() < 1e-12, "{across:?}");
+        }
+    }
+
+    #[test]
+    fn a_compressed_springs_push_across_is_taken_by_its_absolute_value_in_the_step() {
+        // At l = 0.8 the exact factor across is 1 - 1/0.8 = -0.25: the step's block takes +25,
+        // the definite part 0; along the spring both keep k.
+        let (along, across) = along_and_across(stiffness_block, 0.8);
+        assert!((along - Vec3::new(100.0, 0.0, 0.0)).length() < 1e-12, "{along:?}");
+        assert!((across - Vec3::new(0.0, 15.0, 20.0)).length() < 1e-12, "{across:?}");
+        let (along, across) = along_and_across(definite_stiffness_block, 0.8);
+        assert!((along - Vec3::new(100.0, 0.0, 0.0)).length() < 1e-12, "{along:?}");
+        assert!(across.length() < 1e-12, "{across:?}");
+        // Shorter than half its rest length the factor is capped at 1: k every way.
+        let (along, across) = along_and_across(stiffness_block, 0.25);
+        assert!((along - Vec3::new(100.0, 0.0, 0.0)).length() < 1e-12, "{along:?}");
+        assert!((across - Vec3::new(0.0, 60.0, 80.0)).length() < 1e-12, "{across:?}");
+    }
 }

@@ -2,8 +2,9 @@
 //!
 //! On a grid of `nx × ny` particles the system `A = M + Σ_s (e_i - e_j)(e_i - e_j)ᵀ ⊗ S_s` has a
 //! 3×3 diagonal block per particle and one coupling block `-S_s` per spring. A spring's block is
-//! `S = (h c + h² k (1 - α)) n nᵀ + h² k α I`, a rank-one term plus a multiple of the identity, so
-//! it is stored as four numbers, `u = √(h c + h² k (1 - α)) n` and `σ = h² k α`, with
+//! `S = (h c + h² k (1 - α)) n nᵀ + h² k α I` with `α = min(1, |1 - L/l|)` (see
+//! [`stiffness_block`](crate::solver::forces::springs::stiffness_block)), a rank-one term plus a
+//! multiple of the identity, so it is stored as four numbers, `u = √(h c + h² k (1 - α)) n` and `σ = h² k α`, with
 //! `S x = u (u·x) + σ x`: two thirds of the memory and half the arithmetic of a general symmetric
 //! block. Every spring family of the stencil joins `p` to `p + off` for one offset `off`, so the
 //! couplings are stored per offset, indexed by the lower particle `p`, as four arrays. A
@@ -533,7 +534,7 @@ fn spring_row<T: Real, const PULL: bool>(
         let valid = l2 > tiny;
         let inverse_length = if valid { T::ONE / l2.sqrt() } else { T::ZERO };
         let (nx, ny, nz) = (dx * inverse_length, dy * inverse_length, dz * inverse_length);
-        let alpha = if valid { (T::ONE - rest * inverse_length).max(T::ZERO) } else { T::ZERO };
+        let alpha = if valid { (T::ONE - rest * inverse_length).abs().min(T::ONE) } else { T::ZERO };
         let axial = h2k * (T::ONE - alpha);
         let iso = h2k * alpha;
         let scale = (hc + axial).sqrt();
