@@ -67,10 +67,10 @@ pub(crate) fn branch_free_force<T: Real>(k: T, rest: T, c: T, [dx, dy, dz, du, d
 /// (absolute eigenvalue filtering, Chen et al. 2024), as dropping it would
 /// ([`definite_stiffness_block`], Choi and Ko), but treats that push implicitly: with the term
 /// dropped the push is explicit in the step, and at the frame interval it lifts the compressed
-/// folds of a cloth lying on a collider off it and back every few steps, so the drape never rests
-/// (`docs/performance.md`, "Time to drape"). Only the step's Jacobian changes, never the force,
-/// so the states at rest are the same, and so is the step's limit as it shrinks. The cap at 1
-/// keeps the axial factor `1 - α` at least 0.
+/// folds of a cloth lying on a collider off it and back every few steps, so the drape does not
+/// settle (`docs/performance.md`, "Time to drape"). Only the step's Jacobian changes, never the
+/// force, so the states at rest are the same, and as the step shrinks both blocks give the same
+/// motion. The cap at 1 keeps the axial factor `1 - α` at least 0.
 #[inline(always)]
 pub(crate) fn stiffness_block<T: Real>(s: &Spring<T>, n: Vec3<T>, l: T) -> Sym3<T> {
     block(s, n, (T::ONE - s.rest_length / l).abs().min(T::ONE))

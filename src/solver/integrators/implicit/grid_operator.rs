@@ -4,8 +4,8 @@
 //! 3×3 diagonal block per particle and one coupling block `-S_s` per spring. A spring's block is
 //! `S = (h c + h² k (1 - α)) n nᵀ + h² k α I` with `α = min(1, |1 - L/l|)` (see
 //! [`stiffness_block`](crate::solver::forces::springs::stiffness_block)), a rank-one term plus a
-//! multiple of the identity, so it is stored as four numbers, `u = √(h c + h² k (1 - α)) n` and `σ = h² k α`, with
-//! `S x = u (u·x) + σ x`: two thirds of the memory and half the arithmetic of a general symmetric
+//! multiple of the identity, so it is stored as four numbers, `u = √(h c + h² k (1 - α)) n` and
+//! `σ = h² k α`, with `S x = u (u·x) + σ x`: two thirds of the memory and half the arithmetic of a general symmetric
 //! block. Every spring family of the stencil joins `p` to `p + off` for one offset `off`, so the
 //! couplings are stored per offset, indexed by the lower particle `p`, as four arrays. A
 //! product `y = A x` is then a gather: each row of `y` is its
