@@ -12,8 +12,8 @@
 //! The displacement solves one linear system with the stiffness, `K δx = r` (`K = -∂f/∂x`, the
 //! springs' blocks with compressed springs' transverse part dropped, the softest definite
 //! stiffness, and the bending elements' constant matrix), by conjugate gradients with the held
-//! particles filtered out (Baraff and Witkin). To first order `x + δx` is the static solution, so `|δx|`
-//! is how far the state is from the shape it would settle to. The solve looks at the run's
+//! particles filtered out (Baraff and Witkin). To first order `x + δx` is the static solution, so
+//! `|δx|` is how far the state is from the shape it would settle to. The solve looks at the run's
 //! [`Interrupt`] at every iteration, so a cancelled or timed-out run does not wait for it.
 
 use glam::DVec3;

@@ -73,7 +73,14 @@ pub(crate) fn branch_free_force<T: Real>(k: T, rest: T, c: T, [dx, dy, dz, du, d
 /// motion. The cap at 1 keeps the axial factor `1 - α` at least 0.
 #[inline(always)]
 pub(crate) fn stiffness_block<T: Real>(s: &Spring<T>, n: Vec3<T>, l: T) -> Sym3<T> {
-    block(s, n, (T::ONE - s.rest_length / l).abs().min(T::ONE))
+    block(s, n, step_transverse_factor(s.rest_length / l))
+}
+
+/// The step's transverse factor `α = min(1, |1 - L/l|)` of [`stiffness_block`], from `L/l`; the
+/// grid stencil's branch-free rows take it too.
+#[inline(always)]
+pub(crate) fn step_transverse_factor<T: Real>(rest_over_length: T) -> T {
+    (T::ONE - rest_over_length).abs().min(T::ONE)
 }
 
 /// The positive semi-definite part of a spring's stiffness `-∂f_i/∂x_i`: the transverse term

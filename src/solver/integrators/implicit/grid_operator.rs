@@ -5,11 +5,11 @@
 //! `S = (h c + h² k (1 - α)) n nᵀ + h² k α I` with `α = min(1, |1 - L/l|)` (see
 //! [`stiffness_block`](crate::solver::forces::springs::stiffness_block)), a rank-one term plus a
 //! multiple of the identity, so it is stored as four numbers, `u = √(h c + h² k (1 - α)) n` and
-//! `σ = h² k α`, with `S x = u (u·x) + σ x`: two thirds of the memory and half the arithmetic of a general symmetric
-//! block. Every spring family of the stencil joins `p` to `p + off` for one offset `off`, so the
-//! couplings are stored per offset, indexed by the lower particle `p`, as four arrays. A
-//! product `y = A x` is then a gather: each row of `y` is its
-//! diagonal term plus, for every offset, the coupling at `p` times `x[p + off]` and the coupling
+//! `σ = h² k α`, with `S x = u (u·x) + σ x`: two thirds of the memory and half the arithmetic of
+//! a general symmetric block. Every spring family of the stencil joins `p` to `p + off` for one
+//! offset `off`, so the couplings are stored per offset, indexed by the lower particle `p`, as
+//! four arrays. A product `y = A x` is then a gather: each row of `y` is its diagonal term plus,
+//! for every offset, the coupling at `p` times `x[p + off]` and the coupling
 //! at `p - off` times `x[p - off]`. Along a grid row those are contiguous slices, so every inner
 //! loop runs over plain arrays and vectorises, and every `y[p]` is summed in one fixed order:
 //! the result does not depend on how rows are split.
@@ -19,6 +19,7 @@
 //! lengths.
 
 use crate::solver::arrays::Arrays;
+use crate::solver::forces::springs::step_transverse_factor;
 use crate::solver::math::real::Real;
 use crate::solver::math::sym3::Sym3;
 use crate::solver::math::vec3::Vec3;
@@ -534,7 +535,7 @@ fn spring_row<T: Real, const PULL: bool>(
         let valid = l2 > tiny;
         let inverse_length = if valid { T::ONE / l2.sqrt() } else { T::ZERO };
         let (nx, ny, nz) = (dx * inverse_length, dy * inverse_length, dz * inverse_length);
-        let alpha = if valid { (T::ONE - rest * inverse_length).abs().min(T::ONE) } else { T::ZERO };
+        let alpha = if valid { step_transverse_factor(rest * inverse_length) } else { T::ZERO };
         let axial = h2k * (T::ONE - alpha);
         let iso = h2k * alpha;
         let scale = (hc + axial).sqrt();
