@@ -14,7 +14,8 @@
 //!
 //! Each scene (or the one named) runs `RUNS` times (default 1: the grid run alone is long); the
 //! table gives the median wall time, the steps and simulated time to rest, and the
-//! conjugate-gradient iterations per step (mean and most). Iteration counts are deterministic; wall times are not.
+//! conjugate-gradient iterations per step (mean and most), and the fastest particle's speed and
+//! the sheet's lowest point when the run stopped. Iteration counts are deterministic; wall times are not.
 
 use std::time::{Duration, Instant};
 
@@ -65,6 +66,10 @@ struct Run {
     at_rest: bool,
     mean_iterations: f64,
     most_iterations: usize,
+    /// The fastest particle's speed when the run stopped, in m/s.
+    fastest_at_end: f64,
+    /// The sheet's lowest point when the run stopped, in metres above the floor.
+    lowest_at_end: f64,
 }
 
 fn max_speed<T: Real>(sim: &Simulation<T>) -> f64 {
@@ -75,10 +80,10 @@ fn run_to_rest(scene: &Value) -> Run {
     let compiled = Scene::from_json(scene.to_string().as_bytes()).expect("the scene is valid").compile();
     let mut sim = Simulation::<f64>::new(&compiled.model, &compiled.config);
     let start = Instant::now();
-    let (mut moving, mut at_rest) = (false, false);
+    let (mut moving, mut at_rest, mut speed) = (false, false, 0.0);
     while sim.time() < MAX_SIMULATED - 0.5 * DT {
         sim.step().expect("the drape stays stable");
-        let speed = max_speed(&sim);
+        speed = max_speed(&sim);
         moving |= speed > REST_SPEED;
         if moving && speed < REST_SPEED {
             at_rest = true;
@@ -93,6 +98,8 @@ fn run_to_rest(scene: &Value) -> Run {
         at_rest,
         mean_iterations: stats.total_iterations as f64 / sim.steps_taken() as f64,
         most_iterations: stats.most_iterations,
+        fastest_at_end: speed,
+        lowest_at_end: sim.state().positions.iter().map(|x| x.to_dvec3().y).fold(f64::INFINITY, f64::min),
     }
 }
 
@@ -101,8 +108,8 @@ fn main() {
     let only = std::env::args().skip(1).find(|a| a == "grid" || a == "mesh");
     println!("time to drape at dt = 1/60 s, rest below {REST_SPEED} m/s, median of {runs} run(s)");
     println!(
-        "{:<10} {:>9} {:>6} {:>9} {:>8} {:>10} {:>5}",
-        "scene", "wall s", "steps", "sim s", "rest", "CG/step", "most"
+        "{:<10} {:>9} {:>6} {:>9} {:>8} {:>10} {:>5} {:>10} {:>10}",
+        "scene", "wall s", "steps", "sim s", "rest", "CG/step", "most", "end m/s", "lowest m"
     );
     let scenes = [("grid 128²", grid_scene()), ("mesh 10k", mesh_scene(100))];
     for (name, scene) in
@@ -112,14 +119,16 @@ fn main() {
         all.sort_by_key(|r| r.wall);
         let r = &all[all.len() / 2];
         println!(
-            "{:<10} {:>9.2} {:>6} {:>9.3} {:>8} {:>10.1} {:>5}",
+            "{:<10} {:>9.2} {:>6} {:>9.3} {:>8} {:>10.1} {:>5} {:>10.3} {:>10.3}",
             name,
             r.wall.as_secs_f64(),
             r.steps,
             r.steps as f64 * DT,
             if r.at_rest { "yes" } else { "no" },
             r.mean_iterations,
-            r.most_iterations
+            r.most_iterations,
+            r.fastest_at_end,
+            r.lowest_at_end
         );
     }
 }

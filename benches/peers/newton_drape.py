@@ -11,7 +11,7 @@ penalty forces (`--contact-ke`) on particles of radius `--radius`.
 The run is at rest when, after the sheet has begun to move, no particle is faster than 0.005 m/s
 (drape's `stop_at_rest`). It prints one JSON line per dt: steps, simulated time and wall time to
 rest (kernel compilation excluded: a first step on a throwaway state compiles them), whether it
-stayed finite, and the sheet's lowest point.
+stayed finite, the fastest particle's speed at the end, and the sheet's lowest point.
 
     python3 -m venv /tmp/anchors/venv_newton && /tmp/anchors/venv_newton/bin/pip install newton
     /tmp/anchors/venv_newton/bin/python benches/peers/newton_drape.py --n 128 --dt 0.016667 0.004167
@@ -96,7 +96,7 @@ def run(n, dt, radius, contact_ke, iterations, max_time, model_kind):
     step(model.state(), model.state())  # compiles the kernels
     wp.synchronize()
     s0, s1 = model.state(), model.state()
-    steps, moved, at_rest, finite = 0, False, False, True
+    steps, moved, at_rest, finite, speed = 0, False, False, True, 0.0
     start = time.perf_counter()
     while steps * dt < max_time:
         step(s0, s1)
@@ -114,7 +114,7 @@ def run(n, dt, radius, contact_ke, iterations, max_time, model_kind):
     q = s0.particle_q.numpy()
     return dict(peer="newton_vbd", newton=newton.__version__, model=model_kind, n=n, dt=dt, iterations=iterations, radius=radius,
                 contact_ke=contact_ke, steps=steps, simulated_s=steps * dt, wall_s=wall, at_rest=at_rest,
-                finite=finite, lowest_y=float(q[:, 1].min()) if finite else None)
+                finite=finite, fastest_at_end=speed, lowest_y=float(q[:, 1].min()) if finite else None)
 
 
 def main():
