@@ -6,6 +6,9 @@
 //! scene's stability bound (see [`solver::stable_step`]); implicit Euler, stable at any step,
 //! takes a quarter of the frame interval, or that half-bound if it is larger. A scene with
 //! nothing that bounds the step (no springs, no drag) also takes a quarter of the frame interval.
+//! Implicit Euler does not take the whole frame interval in contact: contacts are resolved after
+//! its solve, and at frame-size steps a cloth landing on a collider overstretches until the
+//! collider passes through it (`docs/decisions.md`).
 
 use std::sync::Arc;
 
