@@ -81,10 +81,9 @@ fn max_speed<T: Real>(sim: &Simulation<T>) -> f64 {
 
 /// Whether the step that took the velocities from `previous` to the simulation's is at rest as
 /// `stop_at_rest` judges it (`drape::run`): every particle slower than [`REST_SPEED`] and its
-/// velocity changed by less than 1 % of gravity over the step, so that a sheet released still is
-/// not at rest before it has begun to fall.
-fn at_rest_now<T: Real>(sim: &Simulation<T>, previous: &[DVec3]) -> bool {
-    let change = 0.01 * 9.81 * DT;
+/// velocity changed by less than `change` (1 % of gravity over the step), so that a sheet
+/// released still is not at rest before it has begun to fall.
+fn at_rest_now<T: Real>(sim: &Simulation<T>, previous: &[DVec3], change: f64) -> bool {
     sim.state().velocities.iter().zip(previous).all(|(v, u)| {
         let v = v.to_dvec3();
         v.length() < REST_SPEED && (v - *u).length() < change
@@ -96,10 +95,11 @@ fn run_to_rest(scene: &Value) -> Run {
     let mut sim = Simulation::<f64>::new(&compiled.model, &compiled.config);
     let mut previous: Vec<DVec3> = sim.state().velocities.iter().map(|v| v.to_dvec3()).collect();
     let start = Instant::now();
+    let change = 0.01 * compiled.config.gravity.length() * DT;
     let mut at_rest = false;
     while sim.time() < MAX_SIMULATED - 0.5 * DT {
         sim.step().expect("the drape stays stable");
-        if at_rest_now(&sim, &previous) {
+        if at_rest_now(&sim, &previous, change) {
             at_rest = true;
             break;
         }

@@ -13,9 +13,13 @@ use drape::solver::{Shape, Simulation, Vec3};
 use glam::DVec3;
 
 fn scene(name: &str) -> Scene {
+    Scene::from_json(&example_text(name)).unwrap_or_else(|e| panic!("{name}: {e}"))
+}
+
+/// The text of `examples/{name}`.
+fn example_text(name: &str) -> Vec<u8> {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("examples").join(name);
-    let text = std::fs::read(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-    Scene::from_json(&text).unwrap_or_else(|e| panic!("{name}: {e}"))
+    std::fs::read(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
 }
 
 /// Steps a compiled scene to its end, checking after every step that no free particle is inside
@@ -218,9 +222,8 @@ fn the_sphere_drape_stepped_at_the_frame_interval_keeps_its_folds_on_the_ball() 
     // where it wraps the ball, and a compressed spring's transverse stiffness `k (1 - L/l)` is
     // negative: dropped from the step's matrix (left explicit), it lifts the folds on the ball's
     // top off it and back at about 1 m/s from 1.25 s on; taken by its absolute value the folds
-    // lie still and the fastest particle from 3 s on is a slow slide down the ball's side.
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/drape_sphere.json");
-    let mut json: serde_json::Value = serde_json::from_slice(&std::fs::read(path).unwrap()).unwrap();
+    // lie still, and from 3 s on no particle is faster than about 17 mm/s.
+    let mut json: serde_json::Value = serde_json::from_slice(&example_text("drape_sphere.json")).unwrap();
     json["bodies"][0]["resolution"] = serde_json::json!([64, 64]);
     json["dt"] = serde_json::json!(1.0 / 60.0);
     json["duration"] = serde_json::json!(4.0);
