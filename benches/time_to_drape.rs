@@ -21,9 +21,9 @@
 
 use std::time::{Duration, Instant};
 
+use drape::run::Rest;
 use drape::scene::Scene;
 use drape::solver::{Real, Simulation};
-use glam::DVec3;
 use serde_json::{Value, json};
 
 const DT: f64 = 1.0 / 60.0;
@@ -79,33 +79,19 @@ fn max_speed<T: Real>(sim: &Simulation<T>) -> f64 {
     sim.state().velocities.iter().map(|v| v.to_dvec3().length()).fold(0.0, f64::max)
 }
 
-/// Whether the step that took the velocities from `previous` to the simulation's is at rest as
-/// `stop_at_rest` judges it (`drape::run`): every particle slower than [`REST_SPEED`] and its
-/// velocity changed by less than `change` (1 % of gravity over the step), so that a sheet
-/// released still is not at rest before it has begun to fall.
-fn at_rest_now<T: Real>(sim: &Simulation<T>, previous: &[DVec3], change: f64) -> bool {
-    sim.state().velocities.iter().zip(previous).all(|(v, u)| {
-        let v = v.to_dvec3();
-        v.length() < REST_SPEED && (v - *u).length() < change
-    })
-}
-
 fn run_to_rest(scene: &Value) -> Run {
     let compiled = Scene::from_json(scene.to_string().as_bytes()).expect("the scene is valid").compile();
     let mut sim = Simulation::<f64>::new(&compiled.model, &compiled.config);
-    let mut previous: Vec<DVec3> = sim.state().velocities.iter().map(|v| v.to_dvec3()).collect();
+    let mut rest = Rest::new(&compiled, REST_SPEED, &sim);
     let start = Instant::now();
-    let change = 0.01 * compiled.config.gravity.length() * DT;
     let mut at_rest = false;
     while sim.time() < MAX_SIMULATED - 0.5 * DT {
         sim.step().expect("the drape stays stable");
-        if at_rest_now(&sim, &previous, change) {
+        if rest.holds(&sim.state().velocities, DT, &compiled.model.pinned) {
             at_rest = true;
             break;
         }
-        for (u, v) in previous.iter_mut().zip(sim.state().velocities.iter()) {
-            *u = v.to_dvec3();
-        }
+        rest.remember(&sim.state().velocities);
     }
     let speed = max_speed(&sim);
     let wall = start.elapsed();

@@ -142,7 +142,7 @@ where
             // The last step of the batch is taken apart, so that the check after it sees the
             // velocities it started from.
             Some(rest) => (taken..target - 1).try_for_each(|_| simulation.step()).and_then(|()| {
-                rest.previous.copy_from(&simulation.state().velocities);
+                rest.remember(&simulation.state().velocities);
                 simulation.step()
             }),
             None => (taken..target).try_for_each(|_| simulation.step()),
@@ -214,8 +214,9 @@ where
     Outcome { recording: recorder.finish(compiled, stats, finished), final_positions }
 }
 
-/// What a run that stops at rest checks, and the velocities it checks against.
-struct Rest<T> {
+/// What a run that stops at rest checks, and the velocities it checks against: the rule
+/// `stop_at_rest` applies, for any caller stepping a [`Simulation`] itself.
+pub struct Rest<T> {
     /// The scene's `stop_at_rest`: every particle must be slower than this, in m/s.
     speed: f64,
     /// The residual acceleration below which a free particle counts as balanced, in m/s²: 1 % of
@@ -229,15 +230,22 @@ struct Rest<T> {
 }
 
 impl<T: Real> Rest<T> {
-    fn new(compiled: &Compiled, speed: f64, simulation: &Simulation<T>) -> Self {
+    /// The rule for `compiled` with the speed limit `speed` (m/s), starting from `simulation`'s
+    /// velocities.
+    pub fn new(compiled: &Compiled, speed: f64, simulation: &Simulation<T>) -> Self {
         let acceleration = (0.01 * compiled.config.gravity.length()).max(speed / 1.0);
         Self { speed, acceleration, previous: simulation.state().velocities.clone() }
     }
 
-    /// Whether `velocities`, one step of `dt` after [`Self::previous`], are at rest: every particle
-    /// slower than the speed, every free particle's velocity changed by less than the
+    /// Keeps `velocities` as the start of the next step, which [`holds`](Self::holds) compares with.
+    pub fn remember(&mut self, velocities: &Vectors<T>) {
+        self.previous.copy_from(velocities);
+    }
+
+    /// Whether `velocities`, one step of `dt` after the remembered ones, are at rest: every
+    /// particle slower than the speed, every free particle's velocity changed by less than the
     /// acceleration times `dt`.
-    fn holds(&self, velocities: &Vectors<T>, dt: f64, pinned: &[bool]) -> bool {
+    pub fn holds(&self, velocities: &Vectors<T>, dt: f64, pinned: &[bool]) -> bool {
         let speed = T::from_f64(self.speed * self.speed);
         let change = (self.acceleration * dt).powi(2);
         velocities.iter().all(|v| v.length_squared() < speed)
