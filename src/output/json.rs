@@ -231,6 +231,7 @@ impl Serialize for StatsView<'_> {
         if let Some(ls) = &st.linear_solver {
             let solver = serde_json::json!({
                 "tolerance": ls.tolerance,
+                "reduction": ls.reduction,
                 "max_iterations": ls.max_iterations,
                 "last_iterations": ls.last_iterations,
                 "most_iterations": ls.most_iterations,

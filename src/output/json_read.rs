@@ -368,6 +368,7 @@ fn read_stats(s: &Value) -> Result<Stats, ReadError> {
             let mean = number("stats.linear_solver.mean_iterations", &l["mean_iterations"])?;
             Ok(LinearSolveStats {
                 tolerance: number("stats.linear_solver.tolerance", &l["tolerance"])?,
+                reduction: number("stats.linear_solver.reduction", &l["reduction"])?,
                 max_iterations: count("stats.linear_solver.max_iterations", &l["max_iterations"])? as usize,
                 last_iterations: count("stats.linear_solver.last_iterations", &l["last_iterations"])?
                     as usize,

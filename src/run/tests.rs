@@ -277,6 +277,7 @@ fn endless_solve(body: Value, estimate: &str) -> Compiled {
         "error_estimate": estimate, "bodies": [body]});
     let mut compiled = Scene::from_json(scene.to_string().as_bytes()).unwrap().compile();
     compiled.config.settings.tolerance = 1e-300;
+    compiled.config.settings.reduction = 0.0;
     compiled.config.settings.max_iterations = 1 << 40;
     compiled
 }

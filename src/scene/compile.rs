@@ -175,6 +175,7 @@ impl Scene {
             settings: IntegratorSettings {
                 verlet_damping: self.verlet_damping,
                 tolerance: self.solver.tolerance,
+                reduction: self.solver.reduction,
                 max_iterations: self.solver.max_iterations,
             },
             dt: self.duration / steps as f64,

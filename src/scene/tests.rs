@@ -61,6 +61,8 @@ fn each_bad_field_is_named_by_its_pointer() {
         (with("/solver", json!({"tolerance": 1e-13})), &["/solver/tolerance"]),
         (with("/solver", json!({"tolerance": 0.2})), &["/solver/tolerance"]),
         (with("/solver", json!({"max_iterations": 10_001})), &["/solver/max_iterations"]),
+        (with("/solver", json!({"reduction": -0.01})), &["/solver/reduction"]),
+        (with("/solver", json!({"reduction": 0.2})), &["/solver/reduction"]),
         (with("/solver", json!({"tol": 1e-3})), &["/solver/tol"]),
         (with("/stop_at_rest", json!(0)), &["/stop_at_rest"]),
         (with("/colour", json!("red")), &["/colour"]),

@@ -158,6 +158,9 @@ impl ErrorEstimateName {
 pub struct SolverSettings {
     /// Relative residual at which a solve stops, in (0, 1) (default 1e-6).
     pub tolerance: f64,
+    /// Reduction of its starting guess's residual at which a solve stops, in [0, 1) (default
+    /// 0.01; 0 solves to `tolerance`).
+    pub reduction: f64,
     /// Iteration cap per solve, at least 1 (default 200).
     #[serde(deserialize_with = "whole::one")]
     pub max_iterations: usize,
@@ -165,7 +168,7 @@ pub struct SolverSettings {
 
 impl Default for SolverSettings {
     fn default() -> Self {
-        Self { tolerance: 1e-6, max_iterations: 200 }
+        Self { tolerance: 1e-6, reduction: 0.01, max_iterations: 200 }
     }
 }
 

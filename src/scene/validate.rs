@@ -18,6 +18,9 @@ struct Problems(Vec<FieldError>);
 pub const MIN_TOLERANCE: f64 = 1e-12;
 /// The loosest: a residual a tenth of the right-hand side is no longer a solution.
 pub const MAX_TOLERANCE: f64 = 0.1;
+/// The loosest stop on the reduction of a solve's starting guess's residual: a solve left with
+/// more than a tenth of how much its step differs from the last one is no longer a solution.
+pub const MAX_REDUCTION: f64 = 0.1;
 /// The most conjugate-gradient iterations a step may take; with the multigrid preconditioner a
 /// solve takes tens, and more only prolongs a step that cannot converge.
 pub const MAX_ITERATIONS: usize = 10_000;
@@ -224,6 +227,10 @@ impl Scene {
                 "/solver/tolerance",
                 format!("must be in [{MIN_TOLERANCE:e}, {MAX_TOLERANCE}], got {tolerance}"),
             );
+        }
+        let reduction = self.solver.reduction;
+        if p.finite("/solver/reduction", &[reduction]) && !(0.0..=MAX_REDUCTION).contains(&reduction) {
+            p.add("/solver/reduction", format!("must be in [0, {MAX_REDUCTION}], got {reduction}"));
         }
         if !(1..=MAX_ITERATIONS).contains(&self.solver.max_iterations) {
             p.add(

@@ -506,8 +506,16 @@ export interface components {
             verlet_damping: number;
             /** @description Implicit Euler's conjugate-gradient solve. */
             solver?: {
-                /** @default 0.000001 */
+                /**
+                 * @description A solve stops once its residual is below this times the right-hand side's norm.
+                 * @default 0.000001
+                 */
                 tolerance: number;
+                /**
+                 * @description A solve also stops once its residual is below this times the residual of its starting guess, the last step's velocity change: that residual is about twice the step's own error, so the solve's error stays a fraction of it. 0 solves to `tolerance`.
+                 * @default 0.01
+                 */
+                reduction: number;
                 /** @default 200 */
                 max_iterations: number;
             };
@@ -1126,6 +1134,7 @@ export interface components {
             };
             linear_solver?: {
                 tolerance?: number;
+                reduction?: number;
                 max_iterations?: number;
                 last_iterations?: number;
                 most_iterations?: number;

@@ -86,13 +86,16 @@ pub struct IntegratorSettings {
     pub verlet_damping: f64,
     /// Implicit Euler's conjugate-gradient tolerance on the relative residual (default 1e-6).
     pub tolerance: f64,
+    /// Implicit Euler's conjugate-gradient stop on the reduction of its starting guess's
+    /// residual, 0 to solve to `tolerance` (default 0.01; see `implicit::stopping`).
+    pub reduction: f64,
     /// Implicit Euler's conjugate-gradient iteration cap per step (default 200).
     pub max_iterations: usize,
 }
 
 impl Default for IntegratorSettings {
     fn default() -> Self {
-        Self { verlet_damping: 0.0, tolerance: 1e-6, max_iterations: 200 }
+        Self { verlet_damping: 0.0, tolerance: 1e-6, reduction: 0.01, max_iterations: 200 }
     }
 }
 

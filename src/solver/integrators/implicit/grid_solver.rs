@@ -21,6 +21,7 @@ use rayon::prelude::*;
 use super::grid_operator::{Family, Field, GridOperator, RightHandSide, zero_field};
 use super::level_bending::BendingMatrices;
 use super::multigrid::Multigrid;
+use super::stopping::Stopping;
 use super::{SolveOutcome, StepInput, dot_slices};
 use crate::solver::forces::bending::BendingElements;
 use crate::solver::forces::dynamics::Dynamics;
@@ -171,25 +172,23 @@ impl<T: Real> GridSolver<T> {
     pub fn solve(
         &mut self,
         input: &StepInput<'_, T>,
-        tolerance: T,
-        max_iterations: usize,
+        stopping: Stopping,
         interrupt: Option<&Interrupt>,
     ) -> Result<SolveOutcome<T>, Interrupted> {
         if self.multigrid.fine().is_parallel() {
             // The whole solve runs on one worker of the pool, so that the parallel products in
             // it share work through the workers' own queues: each entry into the pool from
             // outside goes through its shared queue, which allocates a block every 63 entries.
-            rayon::scope(|_| self.solve_here(input, tolerance, max_iterations, interrupt))
+            rayon::scope(|_| self.solve_here(input, stopping, interrupt))
         } else {
-            self.solve_here(input, tolerance, max_iterations, interrupt)
+            self.solve_here(input, stopping, interrupt)
         }
     }
 
     fn solve_here(
         &mut self,
         input: &StepInput<'_, T>,
-        tolerance: T,
-        max_iterations: usize,
+        stopping: Stopping,
         interrupt: Option<&Interrupt>,
     ) -> Result<SolveOutcome<T>, Interrupted> {
         let h = input.h;
@@ -216,7 +215,7 @@ impl<T: Real> GridSolver<T> {
         self.multigrid.assemble::<T>(self.system.as_ref(), round(h), None);
         zero_pinned(&mut self.rhs, &self.pinned);
         zero_pinned(&mut self.delta_v, &self.pinned);
-        self.conjugate_gradients(tolerance, max_iterations, interrupt)
+        self.conjugate_gradients(stopping, interrupt)
     }
 
     /// The last solution.
@@ -226,8 +225,7 @@ impl<T: Real> GridSolver<T> {
 
     fn conjugate_gradients(
         &mut self,
-        tolerance: T,
-        max_iterations: usize,
+        stopping: Stopping,
         interrupt: Option<&Interrupt>,
     ) -> Result<SolveOutcome<T>, Interrupted> {
         let parallel = self.multigrid.fine().is_parallel();
@@ -237,7 +235,7 @@ impl<T: Real> GridSolver<T> {
             for axis in &mut self.delta_v {
                 axis.fill(T::ZERO);
             }
-            return Ok(SolveOutcome { iterations: 0, relative_residual: T::ZERO });
+            return Ok(SolveOutcome { iterations: 0, relative_residual: T::ZERO, reached_target: true });
         }
         // r = b - A x0 from the previous step's solution.
         system(&self.system, &self.multigrid).residual(&self.rhs, &self.delta_v, &mut self.residual);
@@ -246,11 +244,11 @@ impl<T: Real> GridSolver<T> {
             hinges.add_product(a, b, self.delta_v.arrays(), self.residual.arrays_mut());
             zero_pinned(&mut self.residual, &self.pinned);
         }
-        let target = tolerance.to_f64() * rhs_norm;
         let mut residual_norm = dot_pieces(&self.residual, &self.residual, pieces, parallel).sqrt();
+        let target = stopping.target(rhs_norm, residual_norm);
         let mut iterations = 0;
         let mut rz = 0.0;
-        while residual_norm > target && iterations < max_iterations {
+        while residual_norm > target && iterations < stopping.max_iterations {
             if interrupt.is_some_and(Interrupt::is_raised) {
                 return Err(Interrupted);
             }
@@ -313,7 +311,11 @@ impl<T: Real> GridSolver<T> {
             residual_norm = pieces.iter().sum::<f64>().sqrt();
             iterations += 1;
         }
-        Ok(SolveOutcome { iterations, relative_residual: T::from_f64(residual_norm / rhs_norm) })
+        Ok(SolveOutcome {
+            iterations,
+            relative_residual: T::from_f64(residual_norm / rhs_norm),
+            reached_target: residual_norm <= target,
+        })
     }
 }
 

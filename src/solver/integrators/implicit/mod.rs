@@ -9,7 +9,9 @@
 //! symmetric positive definite, CG converges at any step size, and a compressed fold's push
 //! outward is taken implicitly. Pinned particles are filtered out of the solve (their rows and
 //! columns are held at zero), so they never move. The previous step's `Δv` is the starting
-//! guess. Every solve runs until the residual is below `tolerance` (default 1e-6) times the
+//! guess (zero for the first). A solve runs until its residual is below `reduction` (default 0.01)
+//! times that guess's residual, which keeps its error a fraction of the step's own
+//! ([`stopping`]; the first solve goes without), or below `tolerance` (default 1e-6) times the
 //! right-hand side's norm, or to the iteration cap.
 //!
 //! Two solvers share this step:
@@ -35,6 +37,7 @@ mod grid_solver;
 mod level_bending;
 mod multigrid;
 mod spring_list;
+mod stopping;
 #[cfg(test)]
 mod tests;
 
@@ -47,12 +50,15 @@ use crate::solver::state::State;
 use grid_operator::{Field, zero_field};
 use grid_solver::GridSolver;
 use spring_list::SpringListSolver;
+use stopping::Stopping;
 
 /// How the conjugate-gradient solves of a run went.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct LinearSolveStats {
-    /// The relative residual each solve aims for.
+    /// The relative residual at which a solve stops.
     pub tolerance: f64,
+    /// The reduction of its starting guess's residual at which a solve stops.
+    pub reduction: f64,
     /// The iteration cap per solve.
     pub max_iterations: usize,
     /// Iterations of the last solve.
@@ -61,7 +67,7 @@ pub struct LinearSolveStats {
     pub most_iterations: usize,
     /// Iterations over all solves.
     pub total_iterations: u64,
-    /// Solves that hit the cap before reaching the tolerance.
+    /// Solves that hit the cap before reaching either target.
     pub unconverged_solves: u64,
     /// Relative residual at the end of the last solve.
     pub last_residual: f64,
@@ -81,6 +87,8 @@ pub(crate) struct StepInput<'a, T> {
 pub(crate) struct SolveOutcome<T> {
     pub iterations: usize,
     pub relative_residual: T,
+    /// Whether the residual reached the stopping rule's target (rather than the cap).
+    pub reached_target: bool,
 }
 
 #[derive(Debug)]
@@ -100,7 +108,9 @@ pub(crate) struct Implicit<T> {
     particle_forces: Vectors<T>,
     /// `Δv` of the spring-list solver.
     delta_v: Field<T>,
-    tolerance: T,
+    stopping: Stopping,
+    /// Whether a solve has run, so that the next starts from the last step's `Δv`.
+    warm: bool,
     stats: LinearSolveStats,
     /// Raised from another thread to give up a solve part-way.
     interrupt: Option<Interrupt>,
@@ -132,9 +142,15 @@ impl<T: Real> Implicit<T> {
             forces: zero_field(n),
             particle_forces: Vectors::zeros(n),
             delta_v: zero_field(n),
-            tolerance: T::from_f64(settings.tolerance),
+            stopping: Stopping {
+                tolerance: settings.tolerance,
+                reduction: settings.reduction,
+                max_iterations: settings.max_iterations,
+            },
+            warm: false,
             stats: LinearSolveStats {
                 tolerance: settings.tolerance,
+                reduction: settings.reduction,
                 max_iterations: settings.max_iterations,
                 ..LinearSolveStats::default()
             },
@@ -179,18 +195,18 @@ impl<T: Real> Implicit<T> {
             h,
             drag: dynamics.drag.unwrap_or(T::ZERO),
         };
-        let max_iterations = self.stats.max_iterations;
         let interrupt = self.interrupt.as_ref();
+        // The first solve starts from zero, whose residual is the whole right-hand side rather
+        // than the step's error, so it goes to the tolerance.
+        let stopping = if self.warm { self.stopping } else { Stopping { reduction: 0.0, ..self.stopping } };
         let (outcome, delta_v) = match &mut self.solver {
-            Solver::Grid(grid) => {
-                (grid.solve(&input, self.tolerance, max_iterations, interrupt)?, grid.delta_v())
+            Solver::Grid(grid) => (grid.solve(&input, stopping, interrupt)?, grid.delta_v()),
+            Solver::SpringList(list) => {
+                (list.solve(&input, dynamics, stopping, interrupt, &mut self.delta_v)?, &self.delta_v)
             }
-            Solver::SpringList(list) => (
-                list.solve(&input, dynamics, self.tolerance, max_iterations, interrupt, &mut self.delta_v)?,
-                &self.delta_v,
-            ),
         };
-        record(&mut self.stats, self.tolerance, outcome);
+        self.warm = true;
+        record(&mut self.stats, outcome);
 
         // The one place that writes the state.
         let axes = state.positions.axes_mut().into_iter().zip(state.velocities.axes_mut());
@@ -204,13 +220,13 @@ impl<T: Real> Implicit<T> {
     }
 }
 
-fn record<T: Real>(stats: &mut LinearSolveStats, tolerance: T, outcome: SolveOutcome<T>) {
+fn record<T: Real>(stats: &mut LinearSolveStats, outcome: SolveOutcome<T>) {
     {
         stats.last_iterations = outcome.iterations;
         stats.most_iterations = stats.most_iterations.max(outcome.iterations);
         stats.total_iterations += outcome.iterations as u64;
         stats.last_residual = outcome.relative_residual.to_f64();
-        if outcome.relative_residual > tolerance {
+        if !outcome.reached_target {
             stats.unconverged_solves += 1;
         }
     }

@@ -11,6 +11,7 @@
 
 use super::aggregation::{Aggregation, FineSystem};
 use super::grid_operator::Field;
+use super::stopping::Stopping;
 use super::{SolveOutcome, StepInput};
 use crate::solver::forces::dynamics::Dynamics;
 use crate::solver::forces::springs::{direction, stiffness_block};
@@ -92,13 +93,12 @@ impl<T: Real> SpringListSolver<T> {
         &mut self,
         input: &StepInput<'_, T>,
         dynamics: &Dynamics<T>,
-        tolerance: T,
-        max_iterations: usize,
+        stopping: Stopping,
         interrupt: Option<&Interrupt>,
         delta_v: &mut Field<T>,
     ) -> Result<SolveOutcome<T>, Interrupted> {
         self.assemble(input, dynamics, interrupt)?;
-        let outcome = self.conjugate_gradients(dynamics, tolerance, max_iterations, interrupt)?;
+        let outcome = self.conjugate_gradients(dynamics, stopping, interrupt)?;
         for (p, dv) in self.delta_v.iter().enumerate() {
             (delta_v[0][p], delta_v[1][p], delta_v[2][p]) = (dv.x, dv.y, dv.z);
         }
@@ -190,14 +190,13 @@ impl<T: Real> SpringListSolver<T> {
     fn conjugate_gradients(
         &mut self,
         dynamics: &Dynamics<T>,
-        tolerance: T,
-        max_iterations: usize,
+        stopping: Stopping,
         interrupt: Option<&Interrupt>,
     ) -> Result<SolveOutcome<T>, Interrupted> {
         let rhs_norm = dot(&self.rhs, &self.rhs).sqrt();
         if rhs_norm == T::ZERO {
             self.delta_v.fill(Vec3::ZERO);
-            return Ok(SolveOutcome { iterations: 0, relative_residual: T::ZERO });
+            return Ok(SolveOutcome { iterations: 0, relative_residual: T::ZERO, reached_target: true });
         }
         // r = b - A x0.
         self.search.copy_from_slice(&self.delta_v);
@@ -208,10 +207,10 @@ impl<T: Real> SpringListSolver<T> {
         self.precondition();
         self.search.copy_from_slice(&self.preconditioned);
         let mut rz = dot(&self.residual, &self.preconditioned);
-        let target = tolerance * rhs_norm;
         let mut iterations = 0;
         let mut residual_norm = dot(&self.residual, &self.residual).sqrt();
-        while residual_norm > target && iterations < max_iterations {
+        let target = T::from_f64(stopping.target(rhs_norm.to_f64(), residual_norm.to_f64()));
+        while residual_norm > target && iterations < stopping.max_iterations {
             if interrupt.is_some_and(Interrupt::is_raised) {
                 return Err(Interrupted);
             }
@@ -235,7 +234,11 @@ impl<T: Real> SpringListSolver<T> {
             residual_norm = dot(&self.residual, &self.residual).sqrt();
             iterations += 1;
         }
-        Ok(SolveOutcome { iterations, relative_residual: residual_norm / rhs_norm })
+        Ok(SolveOutcome {
+            iterations,
+            relative_residual: residual_norm / rhs_norm,
+            reached_target: residual_norm <= target,
+        })
     }
 
     fn precondition(&mut self) {
