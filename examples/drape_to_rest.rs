@@ -17,9 +17,9 @@
 //! benchmark, the slack top edge creeps for seconds, and two runs under 1 mm/s were 1.8 to
 //! 3.2 mm apart; draped over a sphere, friction and the path decide the folds.)
 //!
-//! Implicit Euler's step is 1/120 s: at 1/60 s its numerical damping slows the last creep so much
-//! that it is under 1 mm/s at 0.45 s while still 1.2 mm from the equilibrium; at 1/120 s it is
-//! 0.2 mm away when it comes to rest.
+//! Implicit Euler's step is 1/240 s: at 1/60 and 1/120 s its numerical damping slows the last
+//! creep so much that it is under 1 mm/s while still more than a millimetre from the
+//! equilibrium; at 1/240 s it is 0.2 mm away when it comes to rest (`docs/performance.md`).
 //!
 //! A run is at rest when every particle moves slower than 1 mm/s; the check runs once per
 //! simulated millisecond (every step at steps of a millisecond and more) and is timed with it.
@@ -118,7 +118,7 @@ fn run_until(name: &str, integrator: IntegratorKind, dt: f64, drag: f64, rest_sp
 
 fn main() {
     let argument = |k: usize, default: f64| std::env::args().nth(k).map_or(Ok(default), |a| a.parse::<f64>());
-    let (Ok(implicit_dt), Ok(drag)) = (argument(1, 1.0 / 120.0), argument(2, 0.01 * (N * N) as f64)) else {
+    let (Ok(implicit_dt), Ok(drag)) = (argument(1, 1.0 / 240.0), argument(2, 0.01 * (N * N) as f64)) else {
         eprintln!("usage: drape_to_rest [IMPLICIT_DT [DRAG]]");
         std::process::exit(2);
     };
