@@ -158,7 +158,7 @@ impl ErrorEstimateName {
 pub struct SolverSettings {
     /// Relative residual at which a solve stops, in (0, 1) (default 1e-6).
     pub tolerance: f64,
-    /// Reduction of its starting guess's residual at which a solve stops, in [0, 1) (default
+    /// Reduction of its starting guess's residual at which a solve stops, in [0, 0.1] (default
     /// 0.01; 0 solves to `tolerance`).
     pub reduction: f64,
     /// Iteration cap per solve, at least 1 (default 200).
