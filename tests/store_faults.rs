@@ -1,6 +1,7 @@
 //! The job system over a store that fails on command, as one on a full disk does: a claim that
 //! cannot be stored starts nothing, an instance never runs two copies of a job, "job ended" is
-//! logged only once the end is committed, and a normal end is never taken for a lost lease.
+//! logged only once the end is committed, a normal end is never taken for a lost lease, and a
+//! read that crosses a job's end never shows the end without its record.
 
 use std::io::Write;
 use std::sync::atomic::{AtomicBool, AtomicU32, AtomicUsize, Ordering};
@@ -20,8 +21,9 @@ use serde_json::json;
 const PATIENCE: Duration = Duration::from_secs(60);
 
 /// A memory store that fails the next `fail_claims` claims and `fail_finishes` ends, fails
-/// every renewal while `fail_renewals` is set, and with `renew_after_end` holds each renewal
-/// until an end was committed. It logs each committed end.
+/// every renewal while `fail_renewals` is set, with `renew_after_end` holds each renewal
+/// until an end was committed, and with `read_across_end` answers a read that finds a job not
+/// yet ended only once an end was committed and published. It logs each committed end.
 #[derive(Default)]
 struct Faulty {
     inner: MemoryStore,
@@ -29,6 +31,7 @@ struct Faulty {
     fail_finishes: AtomicU32,
     fail_renewals: AtomicBool,
     renew_after_end: AtomicBool,
+    read_across_end: AtomicBool,
     ends_committed: AtomicUsize,
     end_committed: tokio::sync::Notify,
 }
@@ -41,6 +44,21 @@ fn disk_full() -> StoreError {
     StoreError::Backend("database or disk is full".into())
 }
 
+impl Faulty {
+    /// With `read_across_end`, waits until an end was committed and the worker that stored it
+    /// has had time to publish it.
+    async fn after_an_end_when_reading_across(&self) {
+        if !self.read_across_end.load(Ordering::SeqCst) {
+            return;
+        }
+        let committed = self.end_committed.notified();
+        if self.ends_committed.load(Ordering::SeqCst) == 0 {
+            let _ = tokio::time::timeout(PATIENCE, committed).await;
+        }
+        tokio::time::sleep(Duration::from_millis(300)).await;
+    }
+}
+
 #[async_trait]
 impl JobStore for Faulty {
     fn durable(&self) -> bool {
@@ -50,13 +68,21 @@ impl JobStore for Faulty {
         self.inner.insert(job, scene).await
     }
     async fn get(&self, id: &JobId) -> Result<Option<JobRecord>, StoreError> {
-        self.inner.get(id).await
+        let record = self.inner.get(id).await?;
+        if record.as_ref().is_some_and(|job| !job.status.is_final()) {
+            self.after_an_end_when_reading_across().await;
+        }
+        Ok(record)
     }
     async fn find_by_key(&self, key: &str) -> Result<Option<JobRecord>, StoreError> {
         self.inner.find_by_key(key).await
     }
     async fn list(&self, page: Page) -> Result<Vec<JobRecord>, StoreError> {
-        self.inner.list(page).await
+        let jobs = self.inner.list(page).await?;
+        if jobs.iter().any(|job| !job.status.is_final()) {
+            self.after_an_end_when_reading_across().await;
+        }
+        Ok(jobs)
     }
     async fn count_by_status(&self) -> Result<Vec<(JobStatus, u64)>, StoreError> {
         self.inner.count_by_status().await
@@ -337,5 +363,40 @@ async fn a_renewal_that_finds_the_job_just_ended_here_is_not_a_lost_lease() {
     let lines = lines_of(&id);
     assert_eq!(count(&lines, "job ended"), 1, "{lines:#?}");
     assert_eq!(count(&lines, "lease"), 0, "{lines:#?}");
+    jobs.shutdown(Duration::ZERO).await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_read_that_crosses_the_end_of_a_job_gives_it_running_never_ended_without_its_record() {
+    log();
+    let store = Arc::new(Faulty::default());
+    let runs = Arc::new(Runs::default());
+    let jobs =
+        Jobs::start(Arc::clone(&store) as Arc<dyn JobStore>, config(&runs, Duration::from_millis(300), 1));
+    let id = submit(&jobs).await;
+    tokio::time::timeout(PATIENCE, async {
+        while runs.started.load(Ordering::SeqCst) == 0 {
+            tokio::time::sleep(Duration::from_millis(5)).await;
+        }
+    })
+    .await
+    .expect("the job starts");
+    // Both reads find the job running in the store and answer after its end is published.
+    store.read_across_end.store(true, Ordering::SeqCst);
+    let page = Page { offset: 0, limit: 10 };
+    let (read, listed) = tokio::join!(jobs.get(&id), jobs.list(page));
+    store.read_across_end.store(false, Ordering::SeqCst);
+    let read = read.unwrap().expect("the job exists");
+    let listed = listed.unwrap().into_iter().find(|job| job.id == id).expect("the job is listed");
+    for job in [&read, &listed] {
+        assert_eq!(
+            (job.status, job.finished_ms, job.stats.is_some()),
+            (JobStatus::Running, None, false),
+            "{job:?}"
+        );
+    }
+    let ended = wait(&jobs, &id).await;
+    assert_eq!((ended.status, ended.steps_done, ended.stats.is_some()), (JobStatus::Succeeded, 10, true));
+    assert!(ended.finished_ms.is_some());
     jobs.shutdown(Duration::ZERO).await;
 }

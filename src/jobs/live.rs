@@ -8,7 +8,7 @@ use std::time::Instant;
 
 use tokio::sync::watch;
 
-use super::record::Plan;
+use super::record::{JobRecord, Plan};
 use super::status::JobStatus;
 use super::store::StoredResult;
 use crate::run::Control;
@@ -50,9 +50,31 @@ impl Live {
         }
     }
 
+    /// Its status and steps taken, as of now.
+    pub(super) fn progress(&self) -> Progress {
+        Progress { status: *self.status.borrow(), steps_done: self.control.steps_done() }
+    }
+
     /// Why a cancelled job was cancelled.
     pub(super) fn cancel_reason(&self) -> String {
         if self.shutting_down.load(Ordering::Relaxed) { SHUT_DOWN.into() } else { CANCELLED.into() }
+    }
+}
+
+/// A running job's status and steps taken, as this process last knew them.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Progress {
+    status: JobStatus,
+    steps_done: u64,
+}
+
+impl Progress {
+    /// Brings a stored record that has not ended up to date; an ended record is already whole.
+    pub(super) fn overlay(&self, record: &mut JobRecord) {
+        if !record.status.is_final() {
+            record.status = self.status;
+            record.steps_done = self.steps_done;
+        }
     }
 }
 

@@ -20,7 +20,7 @@ use super::handoff::{Handoff, KeptModel};
 use super::id::JobId;
 use super::jobs_config::JobsConfig;
 use super::limits::Limits;
-use super::live::{CANCELLED, Live, SHUT_DOWN};
+use super::live::{CANCELLED, Live, Progress, SHUT_DOWN};
 use super::pool::{spawn_watchdog, spawn_workers};
 use super::record::{Idempotency, JobRecord, now_ms};
 use super::shared::Shared;
@@ -274,26 +274,28 @@ impl Jobs {
     }
 
     /// The job, with its live progress if it is running here.
+    ///
+    /// The live progress is taken before the stored record is read. A job's live status turns
+    /// final only once its end is stored, so a read that crosses the end gives either the running
+    /// job or the whole ended record, never an end without its message and stats.
     pub async fn get(&self, id: &JobId) -> Result<Option<JobRecord>, StoreError> {
-        let live = self.shared.live().get(id).cloned();
+        let progress = self.shared.live().get(id).map(|live| live.progress());
         let mut record = self.shared.store.get(id).await?;
-        if let (Some(record), Some(live)) = (&mut record, live)
-            && !record.status.is_final()
-        {
-            record.status = *live.status.borrow();
-            record.steps_done = live.control.steps_done();
+        if let (Some(record), Some(progress)) = (&mut record, progress) {
+            progress.overlay(record);
         }
         Ok(record)
     }
 
-    /// Jobs, newest first.
+    /// Jobs, newest first, with the live progress of those running here (taken before the
+    /// listing is read, as in [`get`](Self::get)).
     pub async fn list(&self, page: Page) -> Result<Vec<JobRecord>, StoreError> {
+        let progress: HashMap<JobId, Progress> =
+            self.shared.live().iter().map(|(id, live)| (id.clone(), live.progress())).collect();
         let mut jobs = self.shared.store.list(page).await?;
-        let live = self.shared.live();
-        for job in jobs.iter_mut().filter(|job| !job.status.is_final()) {
-            if let Some(l) = live.get(&job.id) {
-                job.status = *l.status.borrow();
-                job.steps_done = l.control.steps_done();
+        for job in &mut jobs {
+            if let Some(progress) = progress.get(&job.id) {
+                progress.overlay(job);
             }
         }
         Ok(jobs)
