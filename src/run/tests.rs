@@ -283,7 +283,10 @@ fn endless_solve(body: Value, estimate: &str) -> Compiled {
 }
 
 /// Cancels `control` once the run has been inside its first step for a while, and returns how
-/// long the run took to end after the cancellation, with its recording.
+/// long the run took to end after the cancellation, with its recording. The solve never ends by
+/// itself, so a run that ends at all was stopped part-way through it; the deadline only turns a
+/// cancellation that never arrives into a failure rather than a hang, and how soon the run ends
+/// is printed, not asserted, since a loaded machine can delay it by any amount.
 fn cancel_mid_solve(compiled: &Compiled) -> (std::time::Duration, Recording) {
     let control = Control::new();
     std::thread::scope(|s| {
@@ -310,7 +313,6 @@ fn a_cancellation_stops_a_grid_clothes_linear_solve_part_way() {
     assert_eq!((r.stats.status, r.stats.steps), (Status::Cancelled, 0));
     assert_eq!(r.frames.times, [0.0], "the frame at t = 0 and no other");
     eprintln!("stopped {stopped_in:?} after the cancellation");
-    assert!(stopped_in < std::time::Duration::from_secs(1), "stopped {stopped_in:?} after the cancellation");
 }
 
 #[test]
@@ -321,7 +323,6 @@ fn a_cancellation_stops_a_spring_list_solve_and_the_error_estimates_companions()
     let (stopped_in, r) = cancel_mid_solve(&endless_solve(chain, "richardson"));
     assert_eq!((r.stats.status, r.stats.steps), (Status::Cancelled, 0));
     eprintln!("stopped {stopped_in:?} after the cancellation");
-    assert!(stopped_in < std::time::Duration::from_secs(1), "stopped {stopped_in:?} after the cancellation");
 }
 
 #[test]
