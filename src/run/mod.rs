@@ -11,14 +11,16 @@
 //!
 //! With `stop_at_rest` a run ends at the first check (every [`BATCH`] steps, or sooner at a frame)
 //! after step 0 at which it is at rest, and rest means rest: every particle is slower than the
-//! scene's speed, and every free (unpinned) particle is balanced, its velocity changed by one
-//! whole step (forces, integrator, constraints, contacts) by less than [`Rest::acceleration`]
-//! times the step. That residual acceleration `|v(n+1) - v(n)| / dt` is about zero for a particle
-//! held still by springs, pins or a collider (contacts are projections, not forces, so the force
-//! sum on a particle lying on a surface is not zero, but the step's change of its velocity is),
-//! and about `|g|` for a particle just released, so a cloth that starts still is not at rest
-//! before it has begun to fall. The velocities of the step before each check are kept in a buffer
-//! made once before the first step, and only when the scene asks to stop at rest.
+//! scene's speed, by its velocity and by its displacement over the last step (a particle that
+//! friction holds on a collider can creep with no velocity), and every free (unpinned) particle is
+//! balanced, its velocity changed by one whole step (forces, integrator, constraints, contacts) by
+//! less than [`Rest::acceleration`] times the step. That residual acceleration
+//! `|v(n+1) - v(n)| / dt` is about zero for a particle held still by springs, pins or a collider
+//! (contacts are projections, not forces, so the force sum on a particle lying on a surface is not
+//! zero, but the step's change of its velocity is), and about `|g|` for a particle just released,
+//! so a cloth that starts still is not at rest before it has begun to fall. The positions and
+//! velocities of the step before each check are kept in buffers made once before the first step,
+//! and only when the scene asks to stop at rest.
 
 mod colliders;
 mod control;
@@ -44,7 +46,7 @@ pub use resolution_estimate::ORDER_RANGE;
 use glam::DVec3;
 
 use crate::scene::{Compiled, ErrorEstimateName, Field, FrameSelection, Precision};
-use crate::solver::{Real, Simulation, StepError, Vec3, Vectors, parallel};
+use crate::solver::{Real, Simulation, State, StepError, Vec3, parallel};
 use schedule::FrameSchedule;
 
 /// Steps between checks of cancellation, progress and rest, when no frame falls sooner.
@@ -129,7 +131,7 @@ where
         }
         if let Some(rest) = &rest
             && taken > 0
-            && rest.holds(&simulation.state().velocities, simulation.dt(), &compiled.model.pinned)
+            && rest.holds(simulation.state(), simulation.dt(), &compiled.model.pinned)
         {
             rest_time = Some(schedule.time_of(taken));
             if schedule.steps.get(next_frame.wrapping_sub(1)) != Some(&taken) {
@@ -142,7 +144,7 @@ where
             // The last step of the batch is taken apart, so that the check after it sees the
             // velocities it started from.
             Some(rest) => (taken..target - 1).try_for_each(|_| simulation.step()).and_then(|()| {
-                rest.remember(&simulation.state().velocities);
+                rest.remember(simulation.state());
                 simulation.step()
             }),
             None => (taken..target).try_for_each(|_| simulation.step()),
@@ -214,7 +216,7 @@ where
     Outcome { recording: recorder.finish(compiled, stats, finished), final_positions }
 }
 
-/// What a run that stops at rest checks, and the velocities it checks against: the rule
+/// What a run that stops at rest checks, and the state it checks against: the rule
 /// `stop_at_rest` applies, for any caller stepping a [`Simulation`] itself.
 pub struct Rest<T> {
     /// The scene's `stop_at_rest`: every particle must be slower than this, in m/s.
@@ -225,33 +227,47 @@ pub struct Rest<T> {
     /// hundredth of its weight; a particle just released feels all of it. The speed per second
     /// means that left alone the particle stays below the speed limit for at least a second more.
     acceleration: f64,
-    /// The velocities at the start of the last step taken.
-    previous: Vectors<T>,
+    /// The state at the start of the last step taken.
+    previous: State<T>,
 }
 
 impl<T: Real> Rest<T> {
     /// The rule for `compiled` with the speed limit `speed` (m/s), starting from `simulation`'s
-    /// velocities.
+    /// state.
     pub fn new(compiled: &Compiled, speed: f64, simulation: &Simulation<T>) -> Self {
         let acceleration = (0.01 * compiled.config.gravity.length()).max(speed / 1.0);
-        Self { speed, acceleration, previous: simulation.state().velocities.clone() }
+        Self { speed, acceleration, previous: simulation.state().clone() }
     }
 
-    /// Keeps `velocities` as the start of the next step, which [`holds`](Self::holds) compares with.
-    pub fn remember(&mut self, velocities: &Vectors<T>) {
-        self.previous.copy_from(velocities);
+    /// Keeps `state` as the start of the next step, which [`holds`](Self::holds) compares with.
+    pub fn remember(&mut self, state: &State<T>) {
+        self.previous.positions.copy_from(&state.positions);
+        self.previous.velocities.copy_from(&state.velocities);
     }
 
-    /// Whether `velocities`, one step of `dt` after the remembered ones, are at rest: every
-    /// particle slower than the speed, every free particle's velocity changed by less than the
-    /// acceleration times `dt`.
-    pub fn holds(&self, velocities: &Vectors<T>, dt: f64, pinned: &[bool]) -> bool {
+    /// Whether `state`, one step of `dt` after the remembered one, is at rest: every particle
+    /// slower than the speed, by its velocity and by its displacement over the step, and every
+    /// free particle's velocity changed by less than the acceleration times `dt`.
+    ///
+    /// The displacement counts because a particle that a collider's friction holds has its
+    /// velocity set to the surface's after the step but keeps the step's slide along the surface
+    /// (the projection of `solver::constraints::contacts`): such a particle creeps with no
+    /// velocity at all.
+    pub fn holds(&self, state: &State<T>, dt: f64, pinned: &[bool]) -> bool {
         let speed = T::from_f64(self.speed * self.speed);
+        let reach = T::from_f64((self.speed * dt).powi(2));
         let change = (self.acceleration * dt).powi(2);
-        velocities.iter().all(|v| v.length_squared() < speed)
-            && velocities
+        let before = &self.previous;
+        state.velocities.iter().all(|v| v.length_squared() < speed)
+            && state
+                .positions
                 .iter()
-                .zip(self.previous.iter())
+                .zip(before.positions.iter())
+                .all(|(x, y)| (x - y).length_squared() < reach)
+            && state
+                .velocities
+                .iter()
+                .zip(before.velocities.iter())
                 .zip(pinned)
                 .all(|((v, u), &pinned)| pinned || (v - u).to_dvec3().length_squared() < change)
     }

@@ -144,8 +144,8 @@ pub struct Stats {
     pub diverged: Option<Diverged>,
     /// Why the run failed, when it did.
     pub failure: Option<String>,
-    /// The time at which the run was found at rest (every particle slower than `stop_at_rest`
-    /// and balanced; see [`run`](crate::run)), if it was.
+    /// The time at which the run was found at rest (every particle slower than `stop_at_rest`,
+    /// by velocity and by displacement, and balanced; see [`run`](crate::run)), if it was.
     pub stopped_at_rest: Option<f64>,
     /// Implicit Euler's conjugate-gradient figures.
     pub linear_solver: Option<LinearSolveStats>,

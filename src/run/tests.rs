@@ -478,6 +478,28 @@ fn a_cloth_held_by_a_collider_is_at_rest() {
 }
 
 #[test]
+fn a_particle_creeping_down_a_slope_is_not_at_rest() {
+    // Two particles on a plane tilted 20° with friction 0.5, which by Coulomb's law holds them
+    // (tan 20° < 0.5). The contact projection stops their velocity every step but keeps the step's
+    // slide along the plane, `dt² g sin 20°`: they creep at `dt g sin 20°` with no velocity at all,
+    // 56 mm/s at 1/60 s and 3.4 mm/s at 1 ms. Rest is judged by the displacement too, so the
+    // first is not at rest by 5 mm/s and the second is, at its first check.
+    let (sin, cos) = 20f64.to_radians().sin_cos();
+    let scene = |dt: f64| {
+        json!({"duration": 1.0, "dt": dt, "integrator": "implicit_euler", "stop_at_rest": 0.005,
+            "bodies": [{"type": "chain", "start": [0, 0, 0], "end": [0, 0, 0.1], "count": 2}],
+            "colliders": [{"type": "plane", "point": [0, 0, 0], "normal": [-sin, cos, 0], "friction": 0.5}],
+            "error_estimate": "none", "output": {"frames": "final"}})
+    };
+    let creeping = run(scene(1.0 / 60.0));
+    assert_eq!(creeping.stats.stopped_at_rest, None);
+    let slid = -last_positions(&creeping)[0];
+    assert!(slid > 0.005 * cos, "slid {slid} m down the slope in 1 s");
+    let held = run(scene(1e-3));
+    assert_eq!((held.stats.stopped_at_rest, held.stats.steps), (Some(0.064), 64));
+}
+
+#[test]
 fn a_mesh_collider_is_recorded_with_its_triangles() {
     let r = run(json!({
         "duration": 0.01, "dt": 0.005, "error_estimate": "none",

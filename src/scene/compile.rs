@@ -78,7 +78,7 @@ pub struct Compiled {
     pub bodies: Vec<BodyInfo>,
     /// What to record.
     pub output: Output,
-    /// Stop early once every particle is slower than this, in m/s.
+    /// Stop early once at rest: every particle slower than this, in m/s, and balanced.
     pub stop_at_rest: Option<f64>,
     /// How the run estimates its own error.
     pub error_estimate: ErrorEstimateName,

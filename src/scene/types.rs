@@ -25,7 +25,8 @@ pub struct Scene {
     pub verlet_damping: f64,
     /// Settings of implicit Euler's linear solver.
     pub solver: SolverSettings,
-    /// End the run early once every particle is slower than this, in m/s (default: never).
+    /// End the run early once at rest: every particle slower than this, in m/s, and balanced
+    /// (default: never; the rule is [`run`](crate::run)'s).
     pub stop_at_rest: Option<f64>,
     /// How the run estimates its own error (default `richardson`).
     pub error_estimate: ErrorEstimateName,
