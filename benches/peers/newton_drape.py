@@ -17,10 +17,10 @@ The run is at rest when, after the sheet has begun to move, no particle is faste
 rest (kernel compilation excluded: a first step on a throwaway state compiles them), whether it
 stayed finite, the fastest particle's speed at the end, and the sheet's lowest point.
 
-    python3 -m venv /tmp/anchors/venv_newton
-    /tmp/anchors/venv_newton/bin/pip install newton==1.8.0 warp-lang==1.19.0
-    /tmp/anchors/venv_newton/bin/python benches/peers/newton_drape.py --n 128 --dt 0.016667 0.004167
-    /tmp/anchors/venv_newton/bin/python benches/peers/newton_drape.py --scene tablecloth --n 128 \
+    python3 -m venv .venv-newton
+    .venv-newton/bin/pip install newton==1.8.0 warp-lang==1.19.0
+    .venv-newton/bin/python benches/peers/newton_drape.py --n 128 --dt 0.016667 0.004167
+    .venv-newton/bin/python benches/peers/newton_drape.py --scene tablecloth --n 128 \
         --model triangles --max-time 12
 """
 
