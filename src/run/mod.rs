@@ -142,7 +142,7 @@ where
         let target = schedule.steps.get(next_frame).copied().unwrap_or(compiled.steps).min(taken + BATCH);
         let stepped = match &mut rest {
             // The last step of the batch is taken apart, so that the check after it sees the
-            // velocities it started from.
+            // state it started from.
             Some(rest) => (taken..target - 1).try_for_each(|_| simulation.step()).and_then(|()| {
                 rest.remember(simulation.state());
                 simulation.step()

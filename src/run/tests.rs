@@ -271,9 +271,9 @@ fn one_step_is_estimated_at_half_its_step_and_none_asks_for_nothing() {
 
 /// A scene whose every implicit solve runs far longer than a test waits: a tolerance no residual
 /// meets and 2⁴⁰ iterations, far past what a scene may ask for, set on the compiled scene: the
-/// solver must stop when asked whatever its settings. Such a solve still ends once conjugate
-/// gradients' updated residual underflows, which on a chain of 20,000 particles took under
-/// 0.3 s here, so the spring-list test below takes a lattice, whose first solve takes over 2 s.
+/// solver must stop when asked whatever its settings. Such a solve does end once conjugate
+/// gradients' updated residual underflows, which a well-preconditioned chain reaches within the
+/// test's wait; the bodies below take many times as long.
 fn endless_solve(body: Value, estimate: &str) -> Compiled {
     let scene = json!({"duration": 1.0, "dt": 0.005, "integrator": "implicit_euler",
         "error_estimate": estimate, "bodies": [body]});
@@ -285,10 +285,11 @@ fn endless_solve(body: Value, estimate: &str) -> Compiled {
 }
 
 /// Cancels `control` once the run has been inside its first step for a while, and returns how
-/// long the run took to end after the cancellation, with its recording. The solve never ends by
-/// itself, so a run that ends at all was stopped part-way through it; the deadline only turns a
-/// cancellation that never arrives into a failure rather than a hang, and how soon the run ends
-/// is printed, not asserted, since a loaded machine can delay it by any amount.
+/// long the run took to end after the cancellation, with its recording. The first solve is still
+/// running when the run is cancelled, so a run that ends with no step taken was stopped part-way
+/// through it; the deadline only turns a cancellation that never arrives into a failure rather
+/// than a hang, and how soon the run ends is printed, not asserted, since a loaded machine can
+/// delay it by any amount.
 fn cancel_mid_solve(compiled: &Compiled) -> (std::time::Duration, Recording) {
     let control = Control::new();
     std::thread::scope(|s| {
@@ -319,8 +320,8 @@ fn a_cancellation_stops_a_grid_clothes_linear_solve_part_way() {
 
 #[test]
 fn a_cancellation_stops_a_spring_list_solve_and_the_error_estimates_companions() {
-    // A 27,000-particle lattice: its first solve takes over 2 s here before its residual
-    // underflows, so the cancellation at 0.3 s finds it running.
+    // A 27,000-particle lattice, whose first solve runs many times the test's wait before its
+    // residual underflows, where a chain's aggregation hierarchy solves it almost exactly.
     let lattice = json!({"type": "lattice", "resolution": [30, 30, 30], "pin": [[0, 0, 0]]});
     let (stopped_in, r) = cancel_mid_solve(&endless_solve(lattice, "richardson"));
     assert_eq!((r.stats.status, r.stats.steps), (Status::Cancelled, 0));
