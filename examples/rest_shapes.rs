@@ -26,7 +26,8 @@ use serde_json::{Value, json};
 const REST_SPEED: f64 = 0.005;
 const DEFAULT_STEPS: [f64; 3] = [600.0, 1200.0, 2400.0];
 
-struct Rest {
+/// One run: its step, when it came to rest (if it did), its wall time and its final positions.
+struct RestShape {
     dt: f64,
     at_rest: Option<f64>,
     wall: f64,
@@ -46,7 +47,7 @@ fn measures(positions: &[DVec3]) -> [f64; 4] {
     ]
 }
 
-fn run(scene: &Value, n: usize, max_time: f64, dt: f64) -> Rest {
+fn run(scene: &Value, n: usize, max_time: f64, dt: f64) -> RestShape {
     let mut scene = scene.clone();
     let object = scene.as_object_mut().expect("a scene is an object");
     object.remove("solver");
@@ -64,7 +65,7 @@ fn run(scene: &Value, n: usize, max_time: f64, dt: f64) -> Rest {
         .chunks_exact(3)
         .map(|p| DVec3::new(p[0], p[1], p[2]))
         .collect();
-    Rest { dt, at_rest: recording.stats.stopped_at_rest, wall: recording.stats.wall_time_s, positions }
+    RestShape { dt, at_rest: recording.stats.stopped_at_rest, wall: recording.stats.wall_time_s, positions }
 }
 
 fn main() {
@@ -82,7 +83,7 @@ fn main() {
     };
     let text = std::fs::read(&path).unwrap_or_else(|e| panic!("{path}: {e}"));
     let scene: Value = serde_json::from_slice(&text).unwrap_or_else(|e| panic!("{path}: {e}"));
-    let runs: Vec<Rest> =
+    let runs: Vec<RestShape> =
         steps.iter().map(|&per_second| run(&scene, n, max_time, 1.0 / per_second)).collect();
     let reference = runs.last().expect("at least one step");
     let reference_measures = measures(&reference.positions);

@@ -35,6 +35,11 @@ wp.config.quiet = True
 import newton  # noqa: E402
 
 REST_SPEED = 0.005
+# The solver's settings unless the command line gives others: VBD iterations a step, the
+# particles' contact radius (m) and the contact stiffness (N/m).
+ITERATIONS = 10
+RADIUS = 0.004
+CONTACT_KE = 1.0e4
 # Contacts are looked for this far beyond a particle's radius: more than a falling sheet travels
 # in a step at 1/60 s, so that none passes a surface between two queries.
 CONTACT_GAP = 0.1
@@ -146,9 +151,9 @@ def main():
     ap.add_argument("--scene", choices=sorted(SCENES), default="sphere")
     ap.add_argument("--n", type=int, default=128)
     ap.add_argument("--dt", type=float, nargs="*", default=[1 / 60])
-    ap.add_argument("--iterations", type=int, default=10)
-    ap.add_argument("--radius", type=float, default=0.004)
-    ap.add_argument("--contact-ke", type=float, default=1.0e4)
+    ap.add_argument("--iterations", type=int, default=ITERATIONS)
+    ap.add_argument("--radius", type=float, default=RADIUS)
+    ap.add_argument("--contact-ke", type=float, default=CONTACT_KE)
     ap.add_argument("--max-time", type=float, default=5.0)
     ap.add_argument("--model", choices=["springs", "triangles"], default="springs")
     args = ap.parse_args()

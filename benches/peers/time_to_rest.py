@@ -80,7 +80,8 @@ def main():
     drape = run_drape(args.scene, args.n, args.drape_dt, args.max_time)
     print(json.dumps(drape), flush=True)
     wp.init()
-    newton = newton_drape.run(args.scene, args.n, NEWTON_DT, 0.004, 1.0e4, 10, args.max_time, "triangles")
+    newton = newton_drape.run(args.scene, args.n, NEWTON_DT, newton_drape.RADIUS, newton_drape.CONTACT_KE,
+                              newton_drape.ITERATIONS, args.max_time, "triangles")
     print(json.dumps(newton), flush=True)
     if not drape["at_rest"]:
         print(json.dumps(dict(ratio=None, why=f"drape is not at rest by {args.max_time} s")))
