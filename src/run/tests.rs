@@ -480,26 +480,72 @@ fn a_cloth_held_by_a_collider_is_at_rest() {
     assert!(off < 0.02, "{off} m from where the cloth ends up");
 }
 
+/// Two particles released at rest on a plane tilted by `degrees` with friction 0.5, stepped by
+/// implicit Euler at `dt` for two seconds, checked for rest (5 mm/s) as `drape run` checks.
+fn on_a_slope(degrees: f64, dt: f64) -> Recording {
+    let (sin, cos) = degrees.to_radians().sin_cos();
+    run(json!({"duration": 2.0, "dt": dt, "integrator": "implicit_euler", "stop_at_rest": 0.005,
+        "bodies": [{"type": "chain", "start": [0, 0, 0], "end": [0, 0, 0.1], "count": 2}],
+        "colliders": [{"type": "plane", "point": [0, 0, 0], "normal": [-sin, cos, 0], "friction": 0.5}],
+        "error_estimate": "none", "output": {"frames": "final"}}))
+}
+
 #[test]
-fn a_particle_creeping_down_a_slope_is_not_at_rest() {
-    // Two particles on a plane tilted 20° with friction 0.5, which by Coulomb's law holds them
-    // (tan 20° < 0.5). The contact projection stops their velocity every step but keeps the step's
-    // slide along the plane, `dt² g sin 20°`: they creep at `dt g sin 20°` with no velocity at all,
-    // 56 mm/s at 1/60 s and 3.4 mm/s at 1 ms. Rest is judged by the displacement too, so the
-    // first is not at rest by 5 mm/s and the second is, at its first check.
-    let (sin, cos) = 20f64.to_radians().sin_cos();
-    let scene = |dt: f64| {
-        json!({"duration": 1.0, "dt": dt, "integrator": "implicit_euler", "stop_at_rest": 0.005,
-            "bodies": [{"type": "chain", "start": [0, 0, 0], "end": [0, 0, 0.1], "count": 2}],
-            "colliders": [{"type": "plane", "point": [0, 0, 0], "normal": [-sin, cos, 0], "friction": 0.5}],
-            "error_estimate": "none", "output": {"frames": "final"}})
-    };
-    let creeping = run(scene(1.0 / 60.0));
-    assert_eq!(creeping.stats.stopped_at_rest, None);
-    let slid = -last_positions(&creeping)[0];
-    assert!(slid > 0.005 * cos, "slid {slid} m down the slope in 1 s");
-    let held = run(scene(1e-3));
-    assert_eq!((held.stats.stopped_at_rest, held.stats.steps), (Some(0.064), 64));
+fn static_friction_holds_a_particle_on_a_slope_at_any_step() {
+    // tan 20° < 0.5: Coulomb's law holds the particles. Only the first step, before any friction
+    // is carried into a step, slides them, by `dt² g sin 20°` down the slope; from then on the
+    // friction that balanced them is given to them before the integrator moves them, and they
+    // stay put: at rest at the first check (64 steps), by their displacement as by their velocity.
+    let g = 9.81;
+    for dt in [1.0 / 60.0, 1e-3] {
+        let held = on_a_slope(20.0, dt);
+        assert_eq!((held.stats.stopped_at_rest, held.stats.steps), (Some(64.0 * dt), 64), "dt {dt}");
+        let first_step = dt * dt * g * 20f64.to_radians().sin();
+        let slid = last_positions(&held)[0].hypot(last_positions(&held)[1]);
+        assert!(
+            (slid - first_step).abs() < 1e-9 * first_step.max(1e-6),
+            "dt {dt}: slid {slid} m, not {first_step}"
+        );
+    }
+}
+
+#[test]
+fn a_particle_on_a_slope_steeper_than_friction_slides_at_coulombs_acceleration() {
+    // tan 40° > 0.5: the particles slide at a = g (sin 40° - 0.5 cos 40°). From the second step the
+    // kinetic friction of the last is carried into the step, so the positions follow that
+    // acceleration; the first step slides by g sin 40° alone, `0.5 g cos 40° dt²` further.
+    let (g, dt) = (9.81, 1.0 / 60.0);
+    let (sin, cos) = 40f64.to_radians().sin_cos();
+    let a = g * (sin - 0.5 * cos);
+    let slid = on_a_slope(40.0, dt);
+    assert_eq!(slid.stats.stopped_at_rest, None);
+    let steps = slid.stats.steps as f64;
+    let expected = a * dt * dt * steps * (steps + 1.0) / 2.0 + 0.5 * g * cos * dt * dt;
+    let along = last_positions(&slid)[0].hypot(last_positions(&slid)[1]);
+    assert!((along - expected).abs() < 1e-9, "slid {along} m down the slope, not {expected}");
+}
+
+#[test]
+fn a_particle_that_moves_with_no_velocity_is_not_at_rest() {
+    // Rest is judged by each particle's displacement over the step as well as its velocity.
+    let compiled = Scene::from_json(
+        json!({"duration": 1.0, "dt": 0.01, "gravity": [0, 0, 0], "bodies": [{"type": "chain", "count": 2}]})
+            .to_string()
+            .as_bytes(),
+    )
+    .expect("a valid scene")
+    .compile();
+    let simulation = Simulation::<f64>::new(&compiled.model, &compiled.config);
+    let rest = Rest::new(&compiled, 0.005, &simulation);
+    let mut state = simulation.state().clone();
+    let pinned = &compiled.model.pinned;
+    assert!(rest.holds(&state, 0.01, pinned));
+    // 4 mm/s by its displacement is below the limit, 6 mm/s is not.
+    for (speed, holds) in [(0.004, true), (0.006, false)] {
+        let moved = simulation.state().positions.get(1) + Vec3::new(speed * 0.01, 0.0, 0.0);
+        state.positions.set(1, moved);
+        assert_eq!(rest.holds(&state, 0.01, pinned), holds, "{speed} m/s");
+    }
 }
 
 #[test]

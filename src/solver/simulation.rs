@@ -164,7 +164,10 @@ impl<T: Real> Simulation<T> {
         let self_collision = config
             .self_collision
             .map(|thickness| SelfCollision::new(model, thickness, config.max_self_collision_pairs));
-        let contacts = Contacts::new(&config.colliders, n);
+        let contacts = Contacts::new(&config.colliders, n).map(|c| match config.integrator {
+            IntegratorKind::ImplicitEuler => c.with_carried_friction(),
+            _ => c,
+        });
         if let Some(contacts) = &contacts {
             contacts.project_out(&mut state.positions, &dynamics.inverse_masses);
         }
@@ -220,7 +223,9 @@ impl<T: Real> Simulation<T> {
         }
         let t = self.time();
         if let Some(contacts) = &mut self.contacts {
-            contacts.begin_step(&self.state.positions);
+            if contacts.begin_step(&self.state.positions, &mut self.state.velocities) {
+                self.stepper.state_changed();
+            }
             if self.moving_colliders {
                 contacts.move_colliders(t, self.dt);
             }

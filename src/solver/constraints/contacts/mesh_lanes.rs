@@ -13,6 +13,7 @@
 //! edge, or one too near the plane to have a direction) keeps its values and is left to the
 //! one-particle path.
 
+use crate::solver::constraints::contacts::carried_friction::BandFriction;
 use crate::solver::constraints::contacts::mesh::{DIRECTION_FLOOR, MeshShape};
 use crate::solver::constraints::contacts::nearby_triangles::{KEEP, NearbyBand, Settled};
 use crate::solver::constraints::contacts::triangle_bvh::TriangleBvh;
@@ -128,6 +129,8 @@ fn resolve<T: Real, const CLOSED: bool>(
     let keep = thickness * T::from_f64(KEEP);
     let floor = thickness * T::from_f64(DIRECTION_FLOOR);
     let (mut out, mut hits, mut rest) = ([[T::ZERO; LANES]; 6], [false; LANES], [false; LANES]);
+    let [carried, started] = BandFriction::lanes(band.friction.as_ref(), block);
+    let mut next = [Vec3::ZERO; LANES];
     for lane in 0..LANES {
         let at = |axes: [&[T; LANES]; 3]| Vec3::new(axes[0][lane], axes[1][lane], axes[2][lane]);
         let (from, end) = (at(start), at(x.each_ref().map(|a| &**a)));
@@ -158,7 +161,7 @@ fn resolve<T: Real, const CLOSED: bool>(
         let onto = foot + direction * thickness;
         let before = at(v.each_ref().map(|a| &**a));
         let mut velocity = before;
-        respond(&mut velocity, direction, friction, restitution);
+        next[lane] = respond(&mut velocity, direction, friction, restitution, carried[lane], started[lane]);
         let pick = |touched: Vec3<T>, kept: Vec3<T>| if hit { touched } else { kept };
         let (onto, velocity) = (pick(onto, end), pick(velocity, before));
         (out[0][lane], out[1][lane], out[2][lane]) = (onto.x, onto.y, onto.z);
@@ -168,6 +171,9 @@ fn resolve<T: Real, const CLOSED: bool>(
     }
     for (axis, values) in x.iter_mut().chain(v.iter_mut()).zip(&out) {
         **axis = *values;
+    }
+    if let Some(carry) = &mut band.friction {
+        carry.set_lanes(block, hits, &next);
     }
     let rest = rest.iter().enumerate().fold(0, |bits, (lane, &rest)| bits | u8::from(rest) << lane);
     Resolved { touched: hits.into_iter().fold(false, |any, hit| any | hit), rest }

@@ -531,7 +531,7 @@ fn contacts_with_a_mesh_never_add_energy_nor_leave_a_particle_inside() {
             start.iter().map(|p| Vec3::new(next(), next(), next()) * 0.8 + p * 0.5).collect();
         let velocities: Vectors<f64> = (0..1000).map(|_| Vec3::new(next(), next(), next()) * 3.0).collect();
         let mut contacts = Contacts::<f64>::new(&[collider], 1000).unwrap();
-        contacts.begin_step(&start);
+        contacts.begin_step(&start, &mut velocities.clone());
         let mut state = State { positions: end, velocities: velocities.clone() };
         contacts.resolve(&mut state, &[1.0; 1000]);
         for p in 0..1000 {
@@ -599,12 +599,19 @@ fn resolve_one_by_one<T: Real>(contacts: &mut Contacts<T>, state: &mut State<T>,
     let [x, y, z] = state.positions.axes_mut();
     let [u, v, w] = state.velocities.axes_mut();
     let start = contacts.start.range(0..n);
-    let mut band = Band { start, positions: [x, y, z], velocities: [u, v, w], inverse_masses };
+    let friction = contacts.friction.as_mut().map(|f| {
+        let (carried, before, next) = f.parts();
+        BandFriction { carried: carried.range(0..n), before: before.range(0..n), next }
+    });
+    let mut band = Band { start, positions: [x, y, z], velocities: [u, v, w], inverse_masses, friction };
     for p in 0..n {
         let at = |axes: [&[T]; 3]| Vec3::new(axes[0][p], axes[1][p], axes[2][p]);
         if mesh.reaches(at(start), at(band.positions.each_ref().map(|a| &**a))) {
             band.contact(c, Some(&mut nearby), p);
         }
+    }
+    if let Some(friction) = &mut contacts.friction {
+        friction.end();
     }
 }
 
@@ -626,7 +633,11 @@ fn resolve_by_blocks<T: Real>(
     let [x, y, z] = state.positions.axes_mut();
     let [u, v, w] = state.velocities.axes_mut();
     let start = contacts.start.range(0..n);
-    let mut band = Band { start, positions: [x, y, z], velocities: [u, v, w], inverse_masses };
+    let friction = contacts.friction.as_mut().map(|f| {
+        let (carried, before, next) = f.parts();
+        BandFriction { carried: carried.range(0..n), before: before.range(0..n), next }
+    });
+    let mut band = Band { start, positions: [x, y, z], velocities: [u, v, w], inverse_masses, friction };
     let (mut answered, mut answered_marked, mut marked_candidates) = (0, 0, 0);
     for block in (0..n).step_by(LANES) {
         let mut rest = [0];
@@ -647,6 +658,9 @@ fn resolve_by_blocks<T: Real>(
             }
         }
     }
+    if let Some(friction) = &mut contacts.friction {
+        friction.end();
+    }
     (answered, answered_marked, marked_candidates)
 }
 
@@ -664,8 +678,8 @@ struct Shares {
 }
 
 /// Particles resting on `surface` (of height `height` over `(x, z)`) where `place` puts them
-/// (and marks some), stepped by the stage, by blocks in lanes and one at a time: every step
-/// gives the same positions and velocities, exactly.
+/// (and marks some), stepped by the stage, by blocks in lanes and one at a time, with friction
+/// carried from step to step: every step gives the same positions and velocities, exactly.
 fn stepped_three_ways<T: Real>(
     surface: TriangleSurface,
     height: fn(f64, f64) -> f64,
@@ -688,7 +702,8 @@ fn stepped_three_ways<T: Real>(
     }
     let mut inverse_masses = vec![T::ONE; particles];
     inverse_masses[5] = T::ZERO;
-    let stage = || Contacts::<T>::new(std::slice::from_ref(&collider), particles).unwrap();
+    let stage =
+        || Contacts::<T>::new(std::slice::from_ref(&collider), particles).unwrap().with_carried_friction();
     let (mut by_stage, mut one_by_one, mut by_blocks) = (stage(), stage(), stage());
     by_stage.project_out(&mut state.positions, &inverse_masses);
     let (mut a, mut b, mut d) = (state.clone(), state.clone(), state);
@@ -700,7 +715,7 @@ fn stepped_three_ways<T: Real>(
         for (contacts, state) in
             [(&mut by_stage, &mut a), (&mut one_by_one, &mut b), (&mut by_blocks, &mut d)]
         {
-            contacts.begin_step(&state.positions);
+            contacts.begin_step(&state.positions, &mut state.velocities);
             for p in (0..particles).filter(|&p| inverse_masses[p] != T::ZERO) {
                 let moved = state.positions.get(p) + state.velocities.get(p) * dt + sink;
                 state.positions.set(p, moved);

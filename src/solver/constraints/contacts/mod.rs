@@ -14,6 +14,12 @@
 //! Particles that start inside are projected out when the simulation is built and again by
 //! each step. Pinned particles are never moved.
 //!
+//! With implicit Euler, whose steps are large, friction is also carried from one step into the
+//! next (`carried_friction.rs`): the steady friction that held a particle in one step is given to
+//! it before the next step moves it, so that a particle friction holds stays where it is instead
+//! of creeping by the `h² a_t` the step slid it, and the projection's friction above then
+//! applies only what that carried part did not.
+//!
 //! Fast particles do not tunnel. A plane is a half-space: a particle that crossed it during a
 //! step is found behind it, so the end-of-step test is already continuous. Against a sphere the
 //! segment from the start-of-step position to the end is tested: a particle that went through the
@@ -35,6 +41,7 @@
 //! result.
 
 mod axis_box;
+mod carried_friction;
 mod cylinder;
 mod mesh;
 mod mesh_lanes;
@@ -67,6 +74,7 @@ use crate::solver::motion::{Motion, Rigid};
 use crate::solver::parallel;
 use crate::solver::state::State;
 
+use carried_friction::{BandFriction, CarriedFriction};
 use nearby_triangles::{NearbyBand, NearbyTriangles};
 
 /// The friction coefficient a collider has when the scene gives none.
@@ -335,6 +343,7 @@ impl<T: Real> ColliderIn<T> {
                         positions,
                         velocities,
                         band.inverse_masses,
+                        band.friction.as_mut(),
                         block,
                         friction,
                         restitution,
@@ -396,6 +405,8 @@ struct Band<'a, T> {
     positions: [&'a mut [T]; 3],
     velocities: [&'a mut [T]; 3],
     inverse_masses: &'a [T],
+    /// The friction carried into the step, when a collider has friction.
+    friction: Option<BandFriction<'a, T>>,
 }
 
 impl<T: Real> Band<'_, T> {
@@ -409,6 +420,7 @@ impl<T: Real> Band<'_, T> {
             positions: [&mut x[..count], &mut y[..count], &mut z[..count]],
             velocities: [&mut u[..count], &mut v[..count], &mut w[..count]],
             inverse_masses: &self.inverse_masses[..count],
+            friction: self.friction.as_mut().map(|f| f.first(count)),
         }
     }
 
@@ -425,7 +437,14 @@ impl<T: Real> Band<'_, T> {
         };
         // The response acts on the velocity relative to the surface.
         let mut velocity = at(self.velocities.each_ref().map(|a| &**a)) - surface_velocity;
-        respond(&mut velocity, surface.normal, c.friction, c.restitution);
+        let (carried, before) = self.friction.as_ref().map_or((Vec3::ZERO, Vec3::ZERO), |f| {
+            let (carried, before) = f.get(p);
+            (carried, before - surface_velocity)
+        });
+        let kept = respond(&mut velocity, surface.normal, c.friction, c.restitution, carried, before);
+        if let Some(friction) = &mut self.friction {
+            friction.set(p, kept);
+        }
         let velocity = velocity + surface_velocity;
         let (point, velocity) = (surface.point.to_array(), velocity.to_array());
         for (axis, (x, v)) in self.positions.iter_mut().zip(&mut self.velocities).enumerate() {
@@ -447,6 +466,8 @@ pub(crate) struct Contacts<T> {
     start: Vectors<T>,
     /// Whether a collider tests the particles' paths: a sphere, a mesh, or any moving collider.
     swept: bool,
+    /// The friction carried from step to step, when a collider has friction.
+    friction: Option<CarriedFriction<T>>,
 }
 
 impl<T: Real> Contacts<T> {
@@ -472,15 +493,27 @@ impl<T: Real> Contacts<T> {
                 motion: c.motion.clone(),
             })
             .collect();
-        Some(Self { colliders, nearby, start: Vectors::zeros(particles), swept })
+        Some(Self { colliders, nearby, start: Vectors::zeros(particles), swept, friction: None })
+    }
+
+    /// Carries friction from step to step ([`carried_friction`]), when a collider has friction.
+    pub fn with_carried_friction(mut self) -> Self {
+        if self.colliders.iter().any(|c| c.friction > T::ZERO) {
+            self.friction = Some(CarriedFriction::new(self.start.len()));
+        }
+        self
     }
 
     /// Remembers where the particles are before a step moves them, when a collider tests their
-    /// paths.
-    pub fn begin_step(&mut self, positions: &Vectors<T>) {
+    /// paths, and gives them the friction carried from the last step, when a collider has
+    /// friction. Returns whether that changed the velocities.
+    pub fn begin_step(&mut self, positions: &Vectors<T>, velocities: &mut Vectors<T>) -> bool {
         if self.swept {
             self.start.copy_from(positions);
         }
+        let Some(friction) = &mut self.friction else { return false };
+        friction.begin(velocities);
+        true
     }
 
     /// Whether any collider moves.
@@ -529,19 +562,34 @@ impl<T: Real> Contacts<T> {
         for (c, nearby) in self.colliders.iter().zip(&mut self.nearby) {
             let [x, y, z] = state.positions.axes_mut();
             let [u, v, w] = state.velocities.axes_mut();
-            let rows = ([x, y, z, u, v, w], nearby.as_mut().map(NearbyTriangles::band));
-            parallel::in_bands(rows, n, 1, band, &|first, count, ([x, y, z, u, v, w], nearby)| {
+            let (carried, next) = match &mut self.friction {
+                Some(friction) => {
+                    let (carried, before, next) = friction.parts();
+                    (Some((carried, before)), Some(next))
+                }
+                None => (None, None),
+            };
+            let rows = (([x, y, z, u, v, w], nearby.as_mut().map(NearbyTriangles::band)), next);
+            parallel::in_bands(rows, n, 1, band, &|first, count, (([x, y, z, u, v, w], nearby), next)| {
                 let particles = first..first + count;
                 let band = Band {
                     start: start.range(particles.clone()),
                     positions: [x, y, z],
                     velocities: [u, v, w],
-                    inverse_masses: &inverse_masses[particles],
+                    inverse_masses: &inverse_masses[particles.clone()],
+                    friction: carried.zip(next).map(|((carried, before), next)| BandFriction {
+                        carried: carried.range(particles.clone()),
+                        before: before.range(particles),
+                        next,
+                    }),
                 };
                 if c.resolve_band(band, nearby) {
                     touched.store(true, Ordering::Relaxed);
                 }
             });
+        }
+        if let Some(friction) = &mut self.friction {
+            friction.end();
         }
         touched.into_inner()
     }
@@ -566,20 +614,46 @@ impl<T: Real> Contacts<T> {
 /// The velocity change of a contact with outward unit normal `n`: restitution on the approaching
 /// normal part, Coulomb friction on the tangential part. A separating particle keeps its velocity.
 ///
+/// `carried` is the friction (a change of velocity) the particle was given at the start of the
+/// step and `before` its velocity then, both relative to the surface, or zero where friction is not
+/// carried ([`carried_friction`]). The step's friction in all is what would stop the particle's
+/// tangential motion, `carried - v_t`, limited to `μ Δv_n`; the velocity takes what `carried` did
+/// not already give. Returns the friction to carry into the next step: the steady part of the
+/// step's, without the stopping of the motion the particle started the step with (zero for a
+/// separating particle).
+///
 /// Written without branches, so that a block of particles takes it in vector lanes
 /// ([`plane::Plane::resolve_lanes`]): every quantity is computed and the ones that do not apply
 /// are discarded, never used.
 #[inline(always)]
-pub(crate) fn respond<T: Real>(v: &mut Vec3<T>, n: Vec3<T>, friction: T, restitution: T) {
+pub(crate) fn respond<T: Real>(
+    v: &mut Vec3<T>,
+    n: Vec3<T>,
+    friction: T,
+    restitution: T,
+    carried: Vec3<T>,
+    before: Vec3<T>,
+) -> Vec3<T> {
+    let tangent = |u: Vec3<T>| u - n * u.dot(n);
     let normal_speed = v.dot(n);
     let normal_change = -(T::ONE + restitution) * normal_speed;
     let tangential = *v - n * normal_speed;
-    let tangential_squared = tangential.length_squared();
-    let slowing = friction * normal_change;
-    // Scaling rather than normalising keeps a particle with no tangential speed finite: the
-    // quotient is kept only when the tangential speed is larger than the slowing, so not zero.
-    let slides = tangential_squared > slowing * slowing;
-    let keep = if slides { T::ONE - slowing / tangential_squared.sqrt() } else { T::ZERO };
-    let responded = tangential * keep - n * (restitution * normal_speed);
-    *v = if normal_speed < T::ZERO { responded } else { *v };
+    let carried = tangent(carried);
+    let limit = friction * normal_change;
+    let stopping = carried - tangential;
+    let change = within(stopping, limit);
+    let responded = tangential - carried + change - n * (restitution * normal_speed);
+    let approaching = normal_speed < T::ZERO;
+    *v = if approaching { responded } else { *v };
+    let steady = within(stopping + tangent(before), limit);
+    if approaching { steady } else { Vec3::ZERO }
+}
+
+/// `u` shortened to length `limit` if it is longer. Scaling rather than normalising keeps a zero
+/// `u` finite: the quotient is kept only when `u` is longer than the limit, so not zero.
+#[inline(always)]
+fn within<T: Real>(u: Vec3<T>, limit: T) -> Vec3<T> {
+    let squared = u.length_squared();
+    let scale = if squared > limit * limit { limit / squared.sqrt() } else { T::ONE };
+    u * scale
 }

@@ -2,6 +2,7 @@
 
 use glam::DVec3;
 
+use super::carried_friction::BandFriction;
 use super::{Surface, respond};
 use crate::solver::forces::spring_blocks::LANES;
 use crate::solver::math::real::Real;
@@ -39,13 +40,16 @@ impl<T: Real> Plane<T> {
     /// Resolves the contacts of the [`LANES`] particles from `first` side by side, in vector
     /// lanes with no branch: a lane whose particle is free and touches takes the point
     /// [`inside`](Self::inside) gives and the velocity [`respond`] gives, the same values as
-    /// one particle at a time; the others keep theirs. Returns whether any particle was touched.
+    /// one particle at a time; the others keep theirs, and their carried friction. Returns whether
+    /// any particle was touched.
     #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
     pub fn resolve_lanes(
         &self,
         positions: [&mut [T]; 3],
         velocities: [&mut [T]; 3],
         inverse_masses: &[T],
+        carry: Option<&mut BandFriction<T>>,
         first: usize,
         friction: T,
         restitution: T,
@@ -59,13 +63,16 @@ impl<T: Real> Plane<T> {
         // Computed from copies into arrays and written back after, so that the loop is one
         // vector instruction wide.
         let (mut out, mut hits) = ([[T::ZERO; LANES]; 6], [false; LANES]);
+        let [carried, before] = BandFriction::lanes(carry.as_deref(), first);
+        let mut next = [Vec3::ZERO; LANES];
         for lane in 0..LANES {
             let at = Vec3::new(x[0][lane], x[1][lane], x[2][lane]);
             let depth = self.signed_distance(at);
             let hit = (depth <= T::ZERO) & (inverse_masses[lane] != T::ZERO);
             let onto = at - self.normal * depth;
             let mut velocity = Vec3::new(v[0][lane], v[1][lane], v[2][lane]);
-            respond(&mut velocity, self.normal, friction, restitution);
+            next[lane] =
+                respond(&mut velocity, self.normal, friction, restitution, carried[lane], before[lane]);
             let pick = |touched: Vec3<T>, kept: Vec3<T>| if hit { touched } else { kept };
             let (onto, velocity) =
                 (pick(onto, at), pick(velocity, Vec3::new(v[0][lane], v[1][lane], v[2][lane])));
@@ -75,6 +82,9 @@ impl<T: Real> Plane<T> {
         }
         for (axis, values) in x.iter_mut().chain(v.iter_mut()).zip(&out) {
             **axis = *values;
+        }
+        if let Some(carry) = carry {
+            carry.set_lanes(first, hits, &next);
         }
         hits.into_iter().fold(false, |any, hit| any | hit)
     }

@@ -157,7 +157,7 @@ fn contacts_never_add_kinetic_energy_and_leave_no_particle_inside() {
             )
             .unwrap();
             let mut contacts = contacts;
-            contacts.begin_step(&positions);
+            contacts.begin_step(&positions, &mut velocities.clone());
             let mut state = State { positions: positions.clone(), velocities: velocities.clone() };
             contacts.resolve(&mut state, &vec![1.0; positions.len()]);
             for (p, (v0, v1)) in velocities.iter().zip(state.velocities.iter()).enumerate() {
@@ -176,18 +176,48 @@ fn contacts_never_add_kinetic_energy_and_leave_no_particle_inside() {
 #[test]
 fn friction_stops_slow_sliding_and_only_slows_fast_sliding() {
     let n = Vec3::new(0.0, 1.0, 0.0);
+    let none = Vec3::ZERO;
     let mut slow = Vec3::new(0.1, -1.0, 0.0);
-    respond(&mut slow, n, 0.5, 0.0);
+    respond(&mut slow, n, 0.5, 0.0, none, none);
     assert_eq!(slow, Vec3::new(0.0, 0.0, 0.0));
     let mut fast = Vec3::new(3.0, -1.0, 4.0);
-    respond(&mut fast, n, 0.5, 0.5);
+    respond(&mut fast, n, 0.5, 0.5, none, none);
     // Δv_n = 1.5, so the tangential speed 5 drops by 0.75; the normal speed is -e v_n = 0.5.
     let expected = Vec3::new(3.0, 0.0, 4.0) * (4.25 / 5.0) + Vec3::new(0.0, 0.5, 0.0);
     assert!((fast - expected).length() < 1e-15, "{fast:?}");
-    // A separating particle is untouched.
+    // A separating particle is untouched, and carries nothing on.
     let mut leaving = Vec3::new(1.0, 0.5, 0.0);
-    respond(&mut leaving, n, 0.5, 0.5);
-    assert_eq!(leaving, Vec3::new(1.0, 0.5, 0.0));
+    let carried = respond(&mut leaving, n, 0.5, 0.5, Vec3::new(-0.01, 0.0, 0.0), none);
+    assert_eq!((leaving, carried), (Vec3::new(1.0, 0.5, 0.0), none));
+}
+
+#[test]
+fn friction_carries_its_steady_part_into_the_next_step() {
+    // μ = 0.5 and Δv_n = 0.1: friction can change the tangential velocity by 0.05 in a step.
+    let n = Vec3::new(0.0, 1.0, 0.0);
+    let close = |a: Vec3<f64>, b: Vec3<f64>| (a - b).length() < 1e-15;
+    // Held: the friction given at the start balanced the step's push exactly; it stays still and
+    // carries the same friction on.
+    let mut held = Vec3::new(0.0, -0.1, 0.0);
+    let carried = respond(&mut held, n, 0.5, 0.0, Vec3::new(-0.02, 0.0, 0.0), Vec3::ZERO);
+    assert!(close(held, Vec3::ZERO) && close(carried, Vec3::new(-0.02, 0.0, 0.0)), "{held:?} {carried:?}");
+    // Arriving at 0.03 along x and pushed 0.01 further in the step: stopped (0.04 is within
+    // 0.05), but only the push, not the stopping of its arrival, is carried on.
+    let mut arriving = Vec3::new(0.04, -0.1, 0.0);
+    let carried = respond(&mut arriving, n, 0.5, 0.0, Vec3::ZERO, Vec3::new(0.03, 0.0, 0.0));
+    assert!(
+        close(arriving, Vec3::ZERO) && close(carried, Vec3::new(-0.01, 0.0, 0.0)),
+        "{arriving:?} {carried:?}"
+    );
+    // Sliding at 1 with the kinetic friction -0.05 given at the start and pushed 0.01 in the
+    // step: it ends at 0.96, its whole friction of the step 0.05, and carries on the friction that
+    // balances the push. The normal part of the carried friction is dropped.
+    let mut sliding = Vec3::new(0.96, -0.1, 0.0);
+    let carried = respond(&mut sliding, n, 0.5, 0.0, Vec3::new(-0.05, 0.3, 0.0), Vec3::new(1.0, 0.0, 0.0));
+    assert!(
+        close(sliding, Vec3::new(0.96, 0.0, 0.0)) && close(carried, Vec3::new(-0.01, 0.0, 0.0)),
+        "{sliding:?} {carried:?}"
+    );
 }
 
 #[test]
@@ -326,7 +356,7 @@ fn resolved_in_bands_and_lanes_as_alone<T: Real>() {
     };
     let inverse_masses: Vec<T> = (0..n).map(|p| if p % 97 == 0 { T::ZERO } else { T::ONE }).collect();
     let mut contacts = Contacts::<T>::new(&colliders, n).unwrap();
-    contacts.begin_step(&start);
+    contacts.begin_step(&start, &mut state.velocities.clone());
 
     let mut expected = state.clone();
     let mut expected_touched = false;
@@ -335,7 +365,7 @@ fn resolved_in_bands_and_lanes_as_alone<T: Real>() {
             if let Some(surface) = c.shape.contact(start.get(p), expected.positions.get(p), None) {
                 expected.positions.set(p, surface.point);
                 let mut v = expected.velocities.get(p);
-                respond(&mut v, surface.normal, c.friction, c.restitution);
+                respond(&mut v, surface.normal, c.friction, c.restitution, Vec3::ZERO, Vec3::ZERO);
                 expected.velocities.set(p, v);
                 expected_touched = true;
             }
@@ -369,7 +399,7 @@ fn the_start_of_a_step_is_kept_only_for_colliders_that_test_paths() {
         (vec![moving_plane], true),
     ] {
         let mut contacts = Contacts::<f64>::new(&colliders, 3).expect("there are colliders");
-        contacts.begin_step(&positions);
+        contacts.begin_step(&positions, &mut Vectors::zeros(3));
         let kept: Vec<Vec3<f64>> = contacts.start.iter().collect();
         let expected = if swept { positions.iter().collect() } else { vec![Vec3::ZERO; 3] };
         assert_eq!(kept, expected, "{colliders:?}");
