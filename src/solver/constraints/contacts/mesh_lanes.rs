@@ -85,10 +85,17 @@ pub(super) fn resolve_blocks<T: Real>(
     let mut touched = false;
     for (k, rest) in rest.iter_mut().enumerate() {
         let block = first + k * LANES;
-        let resolved = if closed {
-            resolve::<T, true>(mesh, &settled, &mut band, block, friction, restitution)
-        } else {
-            resolve::<T, false>(mesh, &settled, &mut band, block, friction, restitution)
+        let resolved = match (closed, band.friction.is_some()) {
+            (true, true) => resolve::<T, true, true>(mesh, &settled, &mut band, block, friction, restitution),
+            (true, false) => {
+                resolve::<T, true, false>(mesh, &settled, &mut band, block, friction, restitution)
+            }
+            (false, true) => {
+                resolve::<T, false, true>(mesh, &settled, &mut band, block, friction, restitution)
+            }
+            (false, false) => {
+                resolve::<T, false, false>(mesh, &settled, &mut band, block, friction, restitution)
+            }
         };
         touched |= resolved.touched;
         *rest = resolved.rest;
@@ -105,7 +112,7 @@ struct Resolved {
 }
 
 #[inline(always)]
-fn resolve<T: Real, const CLOSED: bool>(
+fn resolve<T: Real, const CLOSED: bool, const CARRY: bool>(
     mesh: &MeshShape<T>,
     settled: &Settled<T>,
     band: &mut Band<T>,
@@ -129,7 +136,7 @@ fn resolve<T: Real, const CLOSED: bool>(
     let keep = thickness * T::from_f64(KEEP);
     let floor = thickness * T::from_f64(DIRECTION_FLOOR);
     let (mut out, mut hits, mut rest) = ([[T::ZERO; LANES]; 6], [false; LANES], [false; LANES]);
-    let [carried, started] = BandFriction::lanes(band.friction.as_ref(), block);
+    let [carried, started] = BandFriction::lanes(band.friction.as_ref().filter(|_| CARRY), block);
     let mut next = [Vec3::ZERO; LANES];
     for lane in 0..LANES {
         let at = |axes: [&[T; LANES]; 3]| Vec3::new(axes[0][lane], axes[1][lane], axes[2][lane]);
@@ -161,7 +168,11 @@ fn resolve<T: Real, const CLOSED: bool>(
         let onto = foot + direction * thickness;
         let before = at(v.each_ref().map(|a| &**a));
         let mut velocity = before;
-        next[lane] = respond(&mut velocity, direction, friction, restitution, carried[lane], started[lane]);
+        let response =
+            respond(&mut velocity, direction, friction, restitution, CARRY.then_some(carried[lane]));
+        if CARRY {
+            next[lane] = response.carried_on(started[lane]);
+        }
         let pick = |touched: Vec3<T>, kept: Vec3<T>| if hit { touched } else { kept };
         let (onto, velocity) = (pick(onto, end), pick(velocity, before));
         (out[0][lane], out[1][lane], out[2][lane]) = (onto.x, onto.y, onto.z);

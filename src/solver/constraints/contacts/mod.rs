@@ -339,15 +339,20 @@ impl<T: Real> ColliderIn<T> {
                         band.velocities.each_mut().map(|a| &mut **a),
                     );
                     let (friction, restitution) = (self.friction, self.restitution);
-                    touched |= plane.resolve_lanes(
-                        positions,
-                        velocities,
-                        band.inverse_masses,
-                        band.friction.as_mut(),
-                        block,
-                        friction,
-                        restitution,
-                    );
+                    let (masses, response) = (band.inverse_masses, (friction, restitution));
+                    touched |= match band.friction.as_mut() {
+                        Some(carry) => plane.resolve_lanes::<true>(
+                            positions,
+                            velocities,
+                            masses,
+                            Some(carry),
+                            block,
+                            response,
+                        ),
+                        None => {
+                            plane.resolve_lanes::<false>(positions, velocities, masses, None, block, response)
+                        }
+                    };
                 }
             }
             (ShapeIn::Mesh(mesh), None, Some(nearby)) => {
@@ -437,13 +442,11 @@ impl<T: Real> Band<'_, T> {
         };
         // The response acts on the velocity relative to the surface.
         let mut velocity = at(self.velocities.each_ref().map(|a| &**a)) - surface_velocity;
-        let (carried, before) = self.friction.as_ref().map_or((Vec3::ZERO, Vec3::ZERO), |f| {
-            let (carried, before) = f.get(p);
-            (carried, before - surface_velocity)
-        });
-        let kept = respond(&mut velocity, surface.normal, c.friction, c.restitution, carried, before);
-        if let Some(friction) = &mut self.friction {
-            friction.set(p, kept);
+        let carried = self.friction.as_ref().map(|f| f.get(p));
+        let response =
+            respond(&mut velocity, surface.normal, c.friction, c.restitution, carried.map(|(c, _)| c));
+        if let (Some(friction), Some((_, before))) = (&mut self.friction, carried) {
+            friction.set(p, response.carried_on(before - surface_velocity));
         }
         let velocity = velocity + surface_velocity;
         let (point, velocity) = (surface.point.to_array(), velocity.to_array());
@@ -615,12 +618,10 @@ impl<T: Real> Contacts<T> {
 /// normal part, Coulomb friction on the tangential part. A separating particle keeps its velocity.
 ///
 /// `carried` is the friction (a change of velocity) the particle was given at the start of the
-/// step and `before` its velocity then, both relative to the surface, or zero where friction is not
-/// carried ([`carried_friction`]). The step's friction in all is what would stop the particle's
-/// tangential motion, `carried - v_t`, limited to `μ Δv_n`; the velocity takes what `carried` did
-/// not already give. Returns the friction to carry into the next step: the steady part of the
-/// step's, without the stopping of the motion the particle started the step with (zero for a
-/// separating particle).
+/// step, relative to the surface, or `None` where friction is not carried ([`carried_friction`]).
+/// The step's friction in all is what would stop the particle's tangential motion,
+/// `carried - v_t`, limited to `μ Δv_n`; the velocity takes what `carried` did not already give.
+/// The returned [`Friction`] tells what to carry into the next step.
 ///
 /// Written without branches, so that a block of particles takes it in vector lanes
 /// ([`plane::Plane::resolve_lanes`]): every quantity is computed and the ones that do not apply
@@ -631,22 +632,48 @@ pub(crate) fn respond<T: Real>(
     n: Vec3<T>,
     friction: T,
     restitution: T,
-    carried: Vec3<T>,
-    before: Vec3<T>,
-) -> Vec3<T> {
-    let tangent = |u: Vec3<T>| u - n * u.dot(n);
+    carried: Option<Vec3<T>>,
+) -> Friction<T> {
     let normal_speed = v.dot(n);
     let normal_change = -(T::ONE + restitution) * normal_speed;
     let tangential = *v - n * normal_speed;
-    let carried = tangent(carried);
     let limit = friction * normal_change;
-    let stopping = carried - tangential;
-    let change = within(stopping, limit);
-    let responded = tangential - carried + change - n * (restitution * normal_speed);
+    // Written out for `None`, so that a caller without carried friction does no work for it.
+    let (stopping, responded) = match carried.map(|c| c - n * c.dot(n)) {
+        Some(carried) => {
+            let stopping = carried - tangential;
+            (stopping, tangential - carried + within(stopping, limit))
+        }
+        None => (-tangential, tangential + within(-tangential, limit)),
+    };
+    let responded = responded - n * (restitution * normal_speed);
     let approaching = normal_speed < T::ZERO;
     *v = if approaching { responded } else { *v };
-    let steady = within(stopping + tangent(before), limit);
-    if approaching { steady } else { Vec3::ZERO }
+    Friction { stopping, limit, approaching, n }
+}
+
+/// The friction of one contact's response, from which the friction to carry on follows.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Friction<T> {
+    /// The tangential change of velocity that would have stopped the particle in the step.
+    stopping: Vec3<T>,
+    /// The most friction could change it by, `μ Δv_n`.
+    limit: T,
+    /// Whether the particle approached the surface (else nothing was done).
+    approaching: bool,
+    n: Vec3<T>,
+}
+
+impl<T: Real> Friction<T> {
+    /// The friction to carry into the next step, for a particle whose velocity at the start of the
+    /// step, before the carried friction was given, was `before` (relative to the surface): the
+    /// steady part of the step's friction, without the stopping of that velocity, within the
+    /// limit; zero for a separating particle.
+    #[inline(always)]
+    pub fn carried_on(&self, before: Vec3<T>) -> Vec3<T> {
+        let steady = within(self.stopping + before - self.n * before.dot(self.n), self.limit);
+        if self.approaching { steady } else { Vec3::ZERO }
+    }
 }
 
 /// `u` shortened to length `limit` if it is longer. Scaling rather than normalising keeps a zero

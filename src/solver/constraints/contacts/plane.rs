@@ -40,19 +40,19 @@ impl<T: Real> Plane<T> {
     /// Resolves the contacts of the [`LANES`] particles from `first` side by side, in vector
     /// lanes with no branch: a lane whose particle is free and touches takes the point
     /// [`inside`](Self::inside) gives and the velocity [`respond`] gives, the same values as
-    /// one particle at a time; the others keep theirs, and their carried friction. Returns whether
-    /// any particle was touched.
+    /// one particle at a time; the others keep theirs, and their carried friction. `CARRY` says
+    /// whether `carry` is given, so that a step without carried friction does no work for it.
+    /// `(friction, restitution)` is the collider's response. Returns whether any particle was
+    /// touched.
     #[inline(always)]
-    #[allow(clippy::too_many_arguments)]
-    pub fn resolve_lanes(
+    pub fn resolve_lanes<const CARRY: bool>(
         &self,
         positions: [&mut [T]; 3],
         velocities: [&mut [T]; 3],
         inverse_masses: &[T],
         carry: Option<&mut BandFriction<T>>,
         first: usize,
-        friction: T,
-        restitution: T,
+        (friction, restitution): (T, T),
     ) -> bool {
         fn block<T>(axis: &mut [T], first: usize) -> &mut [T; LANES] {
             (&mut axis[first..first + LANES]).try_into().expect("a whole block")
@@ -63,7 +63,7 @@ impl<T: Real> Plane<T> {
         // Computed from copies into arrays and written back after, so that the loop is one
         // vector instruction wide.
         let (mut out, mut hits) = ([[T::ZERO; LANES]; 6], [false; LANES]);
-        let [carried, before] = BandFriction::lanes(carry.as_deref(), first);
+        let [carried, before] = BandFriction::lanes(carry.as_deref().filter(|_| CARRY), first);
         let mut next = [Vec3::ZERO; LANES];
         for lane in 0..LANES {
             let at = Vec3::new(x[0][lane], x[1][lane], x[2][lane]);
@@ -71,8 +71,11 @@ impl<T: Real> Plane<T> {
             let hit = (depth <= T::ZERO) & (inverse_masses[lane] != T::ZERO);
             let onto = at - self.normal * depth;
             let mut velocity = Vec3::new(v[0][lane], v[1][lane], v[2][lane]);
-            next[lane] =
-                respond(&mut velocity, self.normal, friction, restitution, carried[lane], before[lane]);
+            let response =
+                respond(&mut velocity, self.normal, friction, restitution, CARRY.then_some(carried[lane]));
+            if CARRY {
+                next[lane] = response.carried_on(before[lane]);
+            }
             let pick = |touched: Vec3<T>, kept: Vec3<T>| if hit { touched } else { kept };
             let (onto, velocity) =
                 (pick(onto, at), pick(velocity, Vec3::new(v[0][lane], v[1][lane], v[2][lane])));
