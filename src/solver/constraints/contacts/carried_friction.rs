@@ -92,12 +92,14 @@ impl<T: Real> BandFriction<'_, T> {
     }
 
     /// Particle `p`'s carried friction and velocity before it.
+    #[inline(always)]
     pub fn get(&self, p: usize) -> (Vec3<T>, Vec3<T>) {
         let at = |a: [&[T]; 3]| Vec3::new(a[0][p], a[1][p], a[2][p]);
         (at(self.carried), at(self.before))
     }
 
     /// Sets the friction particle `p` carries on.
+    #[inline(always)]
     pub fn set(&mut self, p: usize, next: Vec3<T>) {
         let next = next.to_array();
         for (axis, value) in self.next.iter_mut().zip(next) {
@@ -115,6 +117,7 @@ impl<T: Real> BandFriction<'_, T> {
     }
 
     /// Sets the friction carried on by the lanes from `first` that `hit`.
+    #[inline(always)]
     pub fn set_lanes(&mut self, first: usize, hit: [bool; LANES], next: &[Vec3<T>; LANES]) {
         for lane in (0..LANES).filter(|&lane| hit[lane]) {
             self.set(first + lane, next[lane]);
