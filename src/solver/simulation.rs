@@ -10,7 +10,7 @@
 
 use glam::DVec3;
 
-use crate::solver::constraints::contacts::{Collider, Contacts};
+use crate::solver::constraints::contacts::{Collider, Contacts, HOLD_STIFFNESS};
 use crate::solver::constraints::self_collision::{PairCapReached, SelfCollision};
 use crate::solver::constraints::strain_limit::StrainLimit;
 use crate::solver::diagnostics::{self, Energy};
@@ -223,8 +223,11 @@ impl<T: Real> Simulation<T> {
         }
         let t = self.time();
         if let Some(contacts) = &mut self.contacts {
-            if contacts.begin_step(&self.state.positions, &mut self.state.velocities) {
+            if contacts.begin_step(&self.state.positions, &mut self.state.velocities, self.h) {
                 self.stepper.state_changed();
+            }
+            if let Some(held) = contacts.held() {
+                self.stepper.hold(held, T::from_f64(HOLD_STIFFNESS));
             }
             if self.moving_colliders {
                 contacts.move_colliders(t, self.dt);
@@ -282,6 +285,13 @@ impl<T: Real> Simulation<T> {
             return Ok(());
         };
         Err(Divergence { step: self.steps_taken, time: self.time(), reason })
+    }
+
+    /// The normal of each particle's contact that the next implicit solve holds (zero where none
+    /// is), when contacts are carried from step to step.
+    #[cfg(test)]
+    pub(crate) fn held_contacts(&self) -> Option<&crate::solver::math::vectors::Vectors<T>> {
+        self.contacts.as_ref().and_then(Contacts::held)
     }
 
     /// Simulated time, in seconds: steps taken times the step.

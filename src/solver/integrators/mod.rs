@@ -18,6 +18,7 @@ mod verlet;
 use crate::solver::forces::dynamics::Dynamics;
 use crate::solver::interrupt::Interrupt;
 use crate::solver::math::real::Real;
+use crate::solver::math::vectors::Vectors;
 use crate::solver::state::State;
 
 pub use implicit::LinearSolveStats;
@@ -149,6 +150,15 @@ impl<T: Real> Stepper<T> {
     pub fn set_interrupt(&mut self, interrupt: Interrupt) {
         if let Self::ImplicitEuler(i) = self {
             i.set_interrupt(interrupt);
+        }
+    }
+
+    /// Holds each particle with a non-zero `normals` entry against a surface in the next step,
+    /// for the integrators that solve (implicit Euler), with the stiffness `stiffness m / h²`
+    /// along that normal; the others take no notice.
+    pub fn hold(&mut self, normals: &Vectors<T>, stiffness: T) {
+        if let Self::ImplicitEuler(i) = self {
+            i.hold(normals, stiffness);
         }
     }
 

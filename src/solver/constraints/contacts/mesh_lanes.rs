@@ -136,8 +136,8 @@ fn resolve<T: Real, const CLOSED: bool, const CARRY: bool>(
     let keep = thickness * T::from_f64(KEEP);
     let floor = thickness * T::from_f64(DIRECTION_FLOOR);
     let (mut out, mut hits, mut rest) = ([[T::ZERO; LANES]; 6], [false; LANES], [false; LANES]);
-    let [carried, started] = BandFriction::lanes(band.friction.as_ref().filter(|_| CARRY), block);
-    let mut next = [Vec3::ZERO; LANES];
+    let carried = BandFriction::lanes(band.friction.as_ref().filter(|_| CARRY), block);
+    let mut next = [(Vec3::ZERO, Vec3::ZERO); LANES];
     for lane in 0..LANES {
         let at = |axes: [&[T; LANES]; 3]| Vec3::new(axes[0][lane], axes[1][lane], axes[2][lane]);
         let (from, end) = (at(start), at(x.each_ref().map(|a| &**a)));
@@ -168,10 +168,15 @@ fn resolve<T: Real, const CLOSED: bool, const CARRY: bool>(
         let onto = foot + direction * thickness;
         let before = at(v.each_ref().map(|a| &**a));
         let mut velocity = before;
-        let response =
-            respond(&mut velocity, direction, friction, restitution, CARRY.then_some(carried[lane]));
+        let response = respond(
+            &mut velocity,
+            direction,
+            friction * carried[lane].friction_scale(),
+            restitution,
+            CARRY.then_some(carried[lane].friction),
+        );
         if CARRY {
-            next[lane] = response.carried_on(started[lane]);
+            next[lane] = (response.carried_on(carried[lane].before), response.hold());
         }
         let pick = |touched: Vec3<T>, kept: Vec3<T>| if hit { touched } else { kept };
         let (onto, velocity) = (pick(onto, end), pick(velocity, before));

@@ -531,7 +531,7 @@ fn contacts_with_a_mesh_never_add_energy_nor_leave_a_particle_inside() {
             start.iter().map(|p| Vec3::new(next(), next(), next()) * 0.8 + p * 0.5).collect();
         let velocities: Vectors<f64> = (0..1000).map(|_| Vec3::new(next(), next(), next()) * 3.0).collect();
         let mut contacts = Contacts::<f64>::new(&[collider], 1000).unwrap();
-        contacts.begin_step(&start, &mut velocities.clone());
+        contacts.begin_step(&start, &mut velocities.clone(), 1e-3);
         let mut state = State { positions: end, velocities: velocities.clone() };
         contacts.resolve(&mut state, &[1.0; 1000]);
         for p in 0..1000 {
@@ -600,8 +600,9 @@ fn resolve_one_by_one<T: Real>(contacts: &mut Contacts<T>, state: &mut State<T>,
     let [u, v, w] = state.velocities.axes_mut();
     let start = contacts.start.range(0..n);
     let friction = contacts.friction.as_mut().map(|f| {
-        let (carried, before, next) = f.parts();
-        BandFriction { carried: carried.range(0..n), before: before.range(0..n), next }
+        let (carried, before, held, next, next_held) = f.parts();
+        let (carried, before, held) = (carried.range(0..n), before.range(0..n), held.range(0..n));
+        BandFriction { carried, before, held, next, next_held }
     });
     let mut band = Band { start, positions: [x, y, z], velocities: [u, v, w], inverse_masses, friction };
     for p in 0..n {
@@ -610,9 +611,7 @@ fn resolve_one_by_one<T: Real>(contacts: &mut Contacts<T>, state: &mut State<T>,
             band.contact(c, Some(&mut nearby), p);
         }
     }
-    if let Some(friction) = &mut contacts.friction {
-        friction.end();
-    }
+    contacts.carry_on(state);
 }
 
 /// How many free particles that may touch the mesh [`mesh_lanes::resolve_blocks`] answers,
@@ -634,8 +633,9 @@ fn resolve_by_blocks<T: Real>(
     let [u, v, w] = state.velocities.axes_mut();
     let start = contacts.start.range(0..n);
     let friction = contacts.friction.as_mut().map(|f| {
-        let (carried, before, next) = f.parts();
-        BandFriction { carried: carried.range(0..n), before: before.range(0..n), next }
+        let (carried, before, held, next, next_held) = f.parts();
+        let (carried, before, held) = (carried.range(0..n), before.range(0..n), held.range(0..n));
+        BandFriction { carried, before, held, next, next_held }
     });
     let mut band = Band { start, positions: [x, y, z], velocities: [u, v, w], inverse_masses, friction };
     let (mut answered, mut answered_marked, mut marked_candidates) = (0, 0, 0);
@@ -658,9 +658,7 @@ fn resolve_by_blocks<T: Real>(
             }
         }
     }
-    if let Some(friction) = &mut contacts.friction {
-        friction.end();
-    }
+    contacts.carry_on(state);
     (answered, answered_marked, marked_candidates)
 }
 
@@ -715,7 +713,7 @@ fn stepped_three_ways<T: Real>(
         for (contacts, state) in
             [(&mut by_stage, &mut a), (&mut one_by_one, &mut b), (&mut by_blocks, &mut d)]
         {
-            contacts.begin_step(&state.positions, &mut state.velocities);
+            contacts.begin_step(&state.positions, &mut state.velocities, dt);
             for p in (0..particles).filter(|&p| inverse_masses[p] != T::ZERO) {
                 let moved = state.positions.get(p) + state.velocities.get(p) * dt + sink;
                 state.positions.set(p, moved);

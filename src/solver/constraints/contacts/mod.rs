@@ -18,7 +18,10 @@
 //! next (`carried_friction.rs`): the steady friction that held a particle in one step is given to
 //! it before the next step moves it, so that a particle friction holds stays where it is instead
 //! of creeping by the `h² a_t` the step slid it, and the projection's friction above then
-//! applies only what that carried part did not.
+//! applies only what that carried part did not. And a particle a fixed collider stopped is held
+//! against it in the next solve, by a stiff spring along the normal that the solve takes
+//! implicitly, so that the sheet around it sees the surface; the projection then removes what
+//! little inward motion is left, and friction's bound counts that spring's impulse too.
 //!
 //! Fast particles do not tunnel. A plane is a half-space: a particle that crossed it during a
 //! step is found behind it, so the end-of-step test is already continuous. Against a sphere the
@@ -74,6 +77,7 @@ use crate::solver::motion::{Motion, Rigid};
 use crate::solver::parallel;
 use crate::solver::state::State;
 
+pub(crate) use carried_friction::HOLD_STIFFNESS;
 use carried_friction::{BandFriction, CarriedFriction};
 use nearby_triangles::{NearbyBand, NearbyTriangles};
 
@@ -291,6 +295,15 @@ struct StepMotion {
 }
 
 impl<T: Real> ColliderIn<T> {
+    /// How far `x` is outside the surface a particle rests on, in metres: the signed distance,
+    /// less a mesh's thickness.
+    fn gap(&self, x: Vec3<T>) -> T {
+        match &self.shape {
+            ShapeIn::Mesh(mesh) => self.shape.signed_distance(x) - mesh.thickness(),
+            shape => shape.signed_distance(x),
+        }
+    }
+
     /// The contact of a particle that moved from `start` to `end` over the step, and the velocity
     /// of the collider's surface there (zero for a fixed one). A moving collider is met in its
     /// own frame: the particle's start as seen from where the collider was, its end as seen from
@@ -443,10 +456,18 @@ impl<T: Real> Band<'_, T> {
         // The response acts on the velocity relative to the surface.
         let mut velocity = at(self.velocities.each_ref().map(|a| &**a)) - surface_velocity;
         let carried = self.friction.as_ref().map(|f| f.get(p));
-        let response =
-            respond(&mut velocity, surface.normal, c.friction, c.restitution, carried.map(|(c, _)| c));
-        if let (Some(friction), Some((_, before))) = (&mut self.friction, carried) {
-            friction.set(p, response.carried_on(before - surface_velocity));
+        let scale = carried.map_or(T::ONE, |c| c.friction_scale());
+        let response = respond(
+            &mut velocity,
+            surface.normal,
+            c.friction * scale,
+            c.restitution,
+            carried.map(|c| c.friction),
+        );
+        if let (Some(friction), Some(carried)) = (&mut self.friction, carried) {
+            // The solve holds a particle only against a fixed surface, whose normal velocity is zero.
+            let hold = if c.moving.is_none() { response.hold() } else { Vec3::ZERO };
+            friction.set(p, response.carried_on(carried.before - surface_velocity), hold);
         }
         let velocity = velocity + surface_velocity;
         let (point, velocity) = (surface.point.to_array(), velocity.to_array());
@@ -469,8 +490,10 @@ pub(crate) struct Contacts<T> {
     start: Vectors<T>,
     /// Whether a collider tests the particles' paths: a sphere, a mesh, or any moving collider.
     swept: bool,
-    /// The friction carried from step to step, when a collider has friction.
+    /// The friction and the contacts carried from step to step, for implicit Euler.
     friction: Option<CarriedFriction<T>>,
+    /// The step being taken, in seconds.
+    step: T,
 }
 
 impl<T: Real> Contacts<T> {
@@ -496,21 +519,36 @@ impl<T: Real> Contacts<T> {
                 motion: c.motion.clone(),
             })
             .collect();
-        Some(Self { colliders, nearby, start: Vectors::zeros(particles), swept, friction: None })
+        Some(Self {
+            colliders,
+            nearby,
+            start: Vectors::zeros(particles),
+            swept,
+            friction: None,
+            step: T::ZERO,
+        })
     }
 
-    /// Carries friction from step to step ([`carried_friction`]), when a collider has friction.
+    /// Carries friction and contacts from step to step ([`carried_friction`]): the friction when a
+    /// collider has friction, the contacts a solve holds when a collider is fixed.
     pub fn with_carried_friction(mut self) -> Self {
-        if self.colliders.iter().any(|c| c.friction > T::ZERO) {
+        if self.colliders.iter().any(|c| c.friction > T::ZERO || c.motion.is_none()) {
             self.friction = Some(CarriedFriction::new(self.start.len()));
         }
         self
     }
 
+    /// The normal of each particle's contact that the next solve is to hold, zero where none is;
+    /// `None` when contacts are not carried.
+    pub fn held(&self) -> Option<&Vectors<T>> {
+        self.friction.as_ref().map(CarriedFriction::held)
+    }
+
     /// Remembers where the particles are before a step moves them, when a collider tests their
     /// paths, and gives them the friction carried from the last step, when a collider has
     /// friction. Returns whether that changed the velocities.
-    pub fn begin_step(&mut self, positions: &Vectors<T>, velocities: &mut Vectors<T>) -> bool {
+    pub fn begin_step(&mut self, positions: &Vectors<T>, velocities: &mut Vectors<T>, h: T) -> bool {
+        self.step = h;
         if self.swept {
             self.start.copy_from(positions);
         }
@@ -567,8 +605,8 @@ impl<T: Real> Contacts<T> {
             let [u, v, w] = state.velocities.axes_mut();
             let (carried, next) = match &mut self.friction {
                 Some(friction) => {
-                    let (carried, before, next) = friction.parts();
-                    (Some((carried, before)), Some(next))
+                    let (carried, before, held, next, next_held) = friction.parts();
+                    (Some((carried, before, held)), Some((next, next_held)))
                 }
                 None => (None, None),
             };
@@ -580,10 +618,14 @@ impl<T: Real> Contacts<T> {
                     positions: [x, y, z],
                     velocities: [u, v, w],
                     inverse_masses: &inverse_masses[particles.clone()],
-                    friction: carried.zip(next).map(|((carried, before), next)| BandFriction {
-                        carried: carried.range(particles.clone()),
-                        before: before.range(particles),
-                        next,
+                    friction: carried.zip(next).map(|((carried, before, held), (next, next_held))| {
+                        BandFriction {
+                            carried: carried.range(particles.clone()),
+                            before: before.range(particles.clone()),
+                            held: held.range(particles),
+                            next,
+                            next_held,
+                        }
                     }),
                 };
                 if c.resolve_band(band, nearby) {
@@ -591,10 +633,22 @@ impl<T: Real> Contacts<T> {
                 }
             });
         }
-        if let Some(friction) = &mut self.friction {
-            friction.end();
-        }
+        self.carry_on(state);
         touched.into_inner()
+    }
+
+    /// Ends the step's carried friction and contacts: the held particles the projection did not
+    /// stop again but that still lie on a fixed surface stay held, and what the step carries on
+    /// becomes what the next is given.
+    fn carry_on(&mut self, state: &State<T>) {
+        let Some(friction) = &mut self.friction else { return };
+        let colliders = &self.colliders;
+        let gap = |x: Vec3<T>| {
+            let fixed = colliders.iter().filter(|c| c.moving.is_none());
+            fixed.fold(T::from_f64(f64::INFINITY), |gap, c| gap.min(c.gap(x)))
+        };
+        friction.keep_holding(state, self.step, gap);
+        friction.end();
     }
 
     /// The names of the collider stages, each type once, in the order they first appear.
@@ -665,6 +719,13 @@ pub(crate) struct Friction<T> {
 }
 
 impl<T: Real> Friction<T> {
+    /// The normal of the contact for the next solve to hold: the surface's, if the particle
+    /// approached it (the projection stopped it), else zero.
+    #[inline(always)]
+    pub fn hold(&self) -> Vec3<T> {
+        if self.approaching { self.n } else { Vec3::ZERO }
+    }
+
     /// The friction to carry into the next step, for a particle whose velocity at the start of the
     /// step, before the carried friction was given, was `before` (relative to the surface): the
     /// steady part of the step's friction, without the stopping of that velocity, within the

@@ -63,18 +63,23 @@ impl<T: Real> Plane<T> {
         // Computed from copies into arrays and written back after, so that the loop is one
         // vector instruction wide.
         let (mut out, mut hits) = ([[T::ZERO; LANES]; 6], [false; LANES]);
-        let [carried, before] = BandFriction::lanes(carry.as_deref().filter(|_| CARRY), first);
-        let mut next = [Vec3::ZERO; LANES];
+        let carried = BandFriction::lanes(carry.as_deref().filter(|_| CARRY), first);
+        let mut next = [(Vec3::ZERO, Vec3::ZERO); LANES];
         for lane in 0..LANES {
             let at = Vec3::new(x[0][lane], x[1][lane], x[2][lane]);
             let depth = self.signed_distance(at);
             let hit = (depth <= T::ZERO) & (inverse_masses[lane] != T::ZERO);
             let onto = at - self.normal * depth;
             let mut velocity = Vec3::new(v[0][lane], v[1][lane], v[2][lane]);
-            let response =
-                respond(&mut velocity, self.normal, friction, restitution, CARRY.then_some(carried[lane]));
+            let response = respond(
+                &mut velocity,
+                self.normal,
+                friction * carried[lane].friction_scale(),
+                restitution,
+                CARRY.then_some(carried[lane].friction),
+            );
             if CARRY {
-                next[lane] = response.carried_on(before[lane]);
+                next[lane] = (response.carried_on(carried[lane].before), response.hold());
             }
             let pick = |touched: Vec3<T>, kept: Vec3<T>| if hit { touched } else { kept };
             let (onto, velocity) =

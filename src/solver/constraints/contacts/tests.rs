@@ -157,7 +157,7 @@ fn contacts_never_add_kinetic_energy_and_leave_no_particle_inside() {
             )
             .unwrap();
             let mut contacts = contacts;
-            contacts.begin_step(&positions, &mut velocities.clone());
+            contacts.begin_step(&positions, &mut velocities.clone(), 1e-3);
             let mut state = State { positions: positions.clone(), velocities: velocities.clone() };
             contacts.resolve(&mut state, &vec![1.0; positions.len()]);
             for (p, (v0, v1)) in velocities.iter().zip(state.velocities.iter()).enumerate() {
@@ -357,7 +357,7 @@ fn resolved_in_bands_and_lanes_as_alone<T: Real>() {
     };
     let inverse_masses: Vec<T> = (0..n).map(|p| if p % 97 == 0 { T::ZERO } else { T::ONE }).collect();
     let mut contacts = Contacts::<T>::new(&colliders, n).unwrap();
-    contacts.begin_step(&start, &mut state.velocities.clone());
+    contacts.begin_step(&start, &mut state.velocities.clone(), T::from_f64(1e-3));
 
     let mut expected = state.clone();
     let mut expected_touched = false;
@@ -400,9 +400,51 @@ fn the_start_of_a_step_is_kept_only_for_colliders_that_test_paths() {
         (vec![moving_plane], true),
     ] {
         let mut contacts = Contacts::<f64>::new(&colliders, 3).expect("there are colliders");
-        contacts.begin_step(&positions, &mut Vectors::zeros(3));
+        contacts.begin_step(&positions, &mut Vectors::zeros(3), 1e-3);
         let kept: Vec<Vec3<f64>> = contacts.start.iter().collect();
         let expected = if swept { positions.iter().collect() } else { vec![Vec3::ZERO; 3] };
         assert_eq!(kept, expected, "{colliders:?}");
     }
+}
+
+/// Which contacts the next implicit solve holds, against a floor with μ 0.5, over two steps of
+/// 1/60 s: every particle the projection stops is held; one held before stays held while it
+/// lies within reach of the surface without leaving it, and is let go once it leaves or lies
+/// beyond reach. A held particle's friction counts the held spring's impulse, `κ` times the
+/// projection's own, so it stops what an unheld particle would only slow.
+#[test]
+fn a_stopped_particle_is_held_in_the_next_solve_until_it_leaves_the_surface() {
+    let h = 1.0 / 60.0;
+    let mut contacts = Contacts::<f64>::new(&[plane(0.5, 0.0)], 6).unwrap().with_carried_friction();
+    let up = Vec3::new(0.0, 1.0, 0.0);
+    let at = |y: f64| Vec3::new(0.0, y, 0.0);
+    let mut state = State {
+        positions: (0..6).map(|_| at(-1e-4)).collect(),
+        velocities: (0..6).map(|p| if p == 5 { Vec3::ZERO } else { Vec3::new(0.0, -0.1, 0.0) }).collect(),
+    };
+    contacts.begin_step(&state.positions.clone(), &mut state.velocities, h);
+    contacts.resolve(&mut state, &[1.0; 6]);
+    let held: Vec<Vec3<f64>> = contacts.held().unwrap().iter().collect();
+    assert_eq!(held, [up, up, up, up, up, Vec3::ZERO], "the particle at rest was not stopped");
+
+    let next = [
+        (at(-1e-5), Vec3::new(0.0, -0.01, 0.0)),   // stopped again
+        (at(1e-7), Vec3::ZERO),                    // lying on the surface
+        (at(1e-7), Vec3::new(0.0, 0.01, 0.0)),     // leaving it
+        (at(2e-4), Vec3::ZERO),                    // beyond reach
+        (at(-1e-6), Vec3::new(0.05, -0.001, 0.0)), // held, sliding in
+        (at(-1e-6), Vec3::new(0.05, -0.001, 0.0)), // the same, not held
+    ];
+    contacts.begin_step(&state.positions.clone(), &mut state.velocities, h);
+    for (p, (x, v)) in next.into_iter().enumerate() {
+        state.positions.set(p, x);
+        state.velocities.set(p, v);
+    }
+    contacts.resolve(&mut state, &[1.0; 6]);
+    let held: Vec<Vec3<f64>> = contacts.held().unwrap().iter().collect();
+    assert_eq!(held, [up, up, Vec3::ZERO, Vec3::ZERO, up, up]);
+    // Friction can take 0.5 · 0.001 from the unheld particle's 0.05, and 101 times that, all of
+    // it, from the held one's.
+    assert_eq!(state.velocities.get(4), Vec3::ZERO);
+    assert!((state.velocities.get(5).x - 0.0495).abs() < 1e-15, "{:?}", state.velocities.get(5));
 }

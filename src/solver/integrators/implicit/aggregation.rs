@@ -76,6 +76,8 @@ pub(crate) struct FineSystem<'a, T> {
     pub spring_blocks: &'a [Sym3<T>],
     /// The hinges with the factors `(a, b)` of their stiffness and damping matrices.
     pub bending: Option<(&'a BendingElements<T>, T, T)>,
+    /// Blocks added to particles' diagonals: the contacts the solve holds.
+    pub held_blocks: &'a [(usize, Sym3<T>)],
 }
 
 /// The hierarchy, its transfers and the coarsest level's solve.
@@ -261,6 +263,9 @@ impl<T: Real> Aggregation<T> {
         for (p, &m) in system.mass_diagonal.iter().enumerate() {
             let d = level.diagonal[p] as usize;
             operator.blocks[d] = Block::diagonal(if held[p] { T::ONE } else { m });
+        }
+        for &(p, ref block) in system.held_blocks.iter().filter(|&&(p, _)| !held[p]) {
+            operator.blocks[level.diagonal[p] as usize].add_scaled(T::ONE, &Block::from_sym(block));
         }
         for (slots, block) in self.fine.springs.iter().zip(system.spring_blocks) {
             let block = Block::from_sym(block);
@@ -744,6 +749,7 @@ mod tests {
         );
         let blocks = spring_blocks(&dynamics, &positions);
         let system = FineSystem {
+            held_blocks: &[],
             mass_diagonal: &dynamics.masses,
             spring_blocks: &blocks,
             bending: dynamics.bending.as_ref().map(|hinges| (hinges, H * H, H)),
@@ -996,6 +1002,7 @@ mod tests {
         let (mut whole, dynamics, blocks) = refilled(24, None);
         let (mut interrupted, ..) = refilled(24, Some(&contact_filter(576)));
         let system = FineSystem {
+            held_blocks: &[],
             mass_diagonal: &dynamics.masses,
             spring_blocks: &blocks,
             bending: dynamics.bending.as_ref().map(|hinges| (hinges, H * H, H)),

@@ -265,6 +265,22 @@ impl<T: Real> GridOperator<T> {
         &mut self.smoother_shift
     }
 
+    /// Adds `block` to particle `p`'s diagonal block and updates its smoother.
+    pub fn add_to_diagonal(&mut self, p: usize, block: Sym3<T>) {
+        let mut diagonal = self.diagonal.arrays_mut();
+        for (axis, value) in diagonal.iter_mut().zip(block.entries()) {
+            axis[p] += value;
+        }
+        let mut block = Sym3::from_entries(diagonal.map(|a| a[p]));
+        if let Some(&shift) = self.smoother_shift.get(p) {
+            block += Sym3::identity() * shift;
+        }
+        let smoother = (block.inverse() * T::from_f64(JACOBI_DAMPING)).entries();
+        for (axis, value) in self.smoother.arrays_mut().iter_mut().zip(smoother) {
+            axis[p] = value;
+        }
+    }
+
     /// `ω D⁻¹` from the diagonal blocks and the smoother's shift.
     pub fn update_smoother(&mut self) {
         let omega = T::from_f64(JACOBI_DAMPING);

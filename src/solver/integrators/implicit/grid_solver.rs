@@ -28,6 +28,7 @@ use crate::solver::forces::dynamics::Dynamics;
 use crate::solver::integrators::Interrupted;
 use crate::solver::interrupt::Interrupt;
 use crate::solver::math::real::Real;
+use crate::solver::math::vec3::Vec3;
 
 #[derive(Debug)]
 pub(crate) struct GridSolver<T> {
@@ -210,6 +211,19 @@ impl<T: Real> GridSolver<T> {
         self.h = h;
         if let Some(hinges) = &self.bending {
             hinges.add_velocity_term(h, input.velocities.arrays(), self.rhs.arrays_mut());
+        }
+        let system = match &mut self.system {
+            Some(system) => system,
+            None => shared(self.multigrid.fine_mut()),
+        };
+        for held in input.held {
+            let p = held.particle;
+            let v = Vec3::new(input.velocities[0][p], input.velocities[1][p], input.velocities[2][p]);
+            let (block, pull) = held.terms(self.mass[p], v);
+            system.add_to_diagonal(p, block);
+            for (axis, value) in self.rhs.iter_mut().zip(pull.to_array()) {
+                axis[p] += value;
+            }
         }
         let round = |value: T| value.to_f64() as f32;
         self.multigrid.assemble::<T>(self.system.as_ref(), round(h), None);

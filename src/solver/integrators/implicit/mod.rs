@@ -45,6 +45,8 @@ use super::{IntegratorSettings, Interrupted};
 use crate::solver::forces::dynamics::Dynamics;
 use crate::solver::interrupt::Interrupt;
 use crate::solver::math::real::Real;
+use crate::solver::math::sym3::Sym3;
+use crate::solver::math::vec3::Vec3;
 use crate::solver::math::vectors::Vectors;
 use crate::solver::state::State;
 use grid_operator::{Field, zero_field};
@@ -80,6 +82,30 @@ pub(crate) struct StepInput<'a, T> {
     pub forces: &'a Field<T>,
     pub h: T,
     pub drag: T,
+    /// The contacts the solve holds: each particle, its contact normal, and the held spring's
+    /// block `κ m n nᵀ` ([`Held`]).
+    pub held: &'a [Held<T>],
+}
+
+/// A particle the solve holds against a surface: the stiffness `κ m / h²` along the normal `n`,
+/// which adds the block `κ m n nᵀ` to the system's diagonal (its mass part scaled as the
+/// system's is) and `-κ m (v·n) n` to the right-hand side, so that the particle keeps `1 / (1 +
+/// κ)` of the inward motion the solve would give it.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Held<T> {
+    pub particle: usize,
+    pub normal: Vec3<T>,
+    /// `κ`, the spring's stiffness in units of `m / h²`.
+    pub stiffness: T,
+}
+
+impl<T: Real> Held<T> {
+    /// The block the spring adds to the diagonal of a particle whose system mass (its mass with
+    /// drag's share) is `mass`, and what it adds to the right-hand side at velocity `v`.
+    pub fn terms(&self, mass: T, v: Vec3<T>) -> (Sym3<T>, Vec3<T>) {
+        let k = self.stiffness * mass;
+        (Sym3::outer(self.normal) * k, self.normal * (T::ZERO - k * v.dot(self.normal)))
+    }
 }
 
 /// How one solve ended.
@@ -112,6 +138,8 @@ pub(crate) struct Implicit<T> {
     /// Whether a solve has run, so that the next starts from the last step's `Δv`.
     warm: bool,
     stats: LinearSolveStats,
+    /// The contacts the next solve holds.
+    held: Vec<Held<T>>,
     /// Raised from another thread to give up a solve part-way.
     interrupt: Option<Interrupt>,
 }
@@ -154,6 +182,7 @@ impl<T: Real> Implicit<T> {
                 max_iterations: settings.max_iterations,
                 ..LinearSolveStats::default()
             },
+            held: Vec::with_capacity(n),
             interrupt: None,
         }
     }
@@ -165,6 +194,14 @@ impl<T: Real> Implicit<T> {
 
     pub fn stats(&self) -> LinearSolveStats {
         self.stats
+    }
+
+    /// Holds each particle with a non-zero `normals` entry against its surface in the next solve,
+    /// with the stiffness `stiffness m / h²` along that normal.
+    pub fn hold(&mut self, normals: &Vectors<T>, stiffness: T) {
+        self.held.clear();
+        let held = normals.iter().enumerate().filter(|(_, n)| *n != Vec3::ZERO);
+        self.held.extend(held.map(|(particle, normal)| Held { particle, normal, stiffness }));
     }
 
     /// One step; when interrupted, the state is left as it was.
@@ -194,6 +231,7 @@ impl<T: Real> Implicit<T> {
             forces: &self.forces,
             h,
             drag: dynamics.drag.unwrap_or(T::ZERO),
+            held: &self.held,
         };
         let interrupt = self.interrupt.as_ref();
         // The first solve starts from zero, whose residual is the whole right-hand side rather

@@ -46,6 +46,8 @@ pub(crate) struct SpringListSolver<T> {
     h: T,
     /// Per particle: the hinges' part of the diagonal (the same on each axis).
     hinge_diagonal: Vec<T>,
+    /// The blocks of the contacts the step's solve holds, by particle.
+    held: Vec<(usize, Sym3<T>)>,
 }
 
 impl<T: Real> SpringListSolver<T> {
@@ -84,6 +86,7 @@ impl<T: Real> SpringListSolver<T> {
             product: zeros(),
             h: T::ZERO,
             hinge_diagonal: vec![T::ZERO; if dynamics.bending.is_some() { n } else { 0 }],
+            held: Vec::with_capacity(n),
         }
     }
 
@@ -153,6 +156,14 @@ impl<T: Real> SpringListSolver<T> {
             }
             self.hinge_diagonal = diagonal;
         }
+        self.held.clear();
+        for held in input.held {
+            let p = held.particle;
+            let (block, pull) = held.terms(self.mass_diagonal[p], v[p]);
+            self.held.push((p, block));
+            self.preconditioner[p] += block;
+            self.rhs[p] += pull;
+        }
         for p in 0..x.len() {
             self.preconditioner[p] = self.preconditioner[p].inverse();
             self.rhs[p] *= self.free[p];
@@ -160,8 +171,12 @@ impl<T: Real> SpringListSolver<T> {
         }
         if let Some(aggregation) = &mut self.aggregation {
             let bending = dynamics.bending.as_ref().map(|hinges| (hinges, h2, h));
-            let system =
-                FineSystem { mass_diagonal: &self.mass_diagonal, spring_blocks: &self.blocks, bending };
+            let system = FineSystem {
+                mass_diagonal: &self.mass_diagonal,
+                spring_blocks: &self.blocks,
+                bending,
+                held_blocks: &self.held,
+            };
             aggregation.refill(&system, None, interrupt)?;
         }
         Ok(())
@@ -180,6 +195,9 @@ impl<T: Real> SpringListSolver<T> {
         }
         if let Some(hinges) = &dynamics.bending {
             hinges.add_product_points(self.h * self.h, self.h, &self.search, &mut self.product, false);
+        }
+        for &(p, block) in &self.held {
+            self.product[p] += block.apply(self.search[p]);
         }
         for (q, &f) in self.product.iter_mut().zip(&self.free) {
             *q *= f;
