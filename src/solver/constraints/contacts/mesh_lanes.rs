@@ -171,7 +171,7 @@ fn resolve<T: Real, const CLOSED: bool, const CARRY: bool>(
         let response = respond(
             &mut velocity,
             direction,
-            friction * carried[lane].friction_scale(),
+            if CARRY { friction * carried[lane].friction_scale() } else { friction },
             restitution,
             CARRY.then_some(carried[lane].friction),
         );

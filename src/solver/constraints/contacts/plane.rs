@@ -74,7 +74,7 @@ impl<T: Real> Plane<T> {
             let response = respond(
                 &mut velocity,
                 self.normal,
-                friction * carried[lane].friction_scale(),
+                if CARRY { friction * carried[lane].friction_scale() } else { friction },
                 restitution,
                 CARRY.then_some(carried[lane].friction),
             );
