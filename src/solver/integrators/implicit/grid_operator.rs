@@ -86,6 +86,16 @@ pub(crate) const JACOBI_DAMPING: f64 = 0.9;
 /// split, and the next size down, 32², is a quarter of it (`docs/decisions.md`).
 pub(crate) const PARALLEL_PARTICLES: usize = 4_096;
 
+/// The smoother's block `ω (D + shift I)⁻¹` of a particle whose diagonal block is `diagonal`, as
+/// its entries.
+fn smoother_entries<T: Real>(diagonal: Sym3<T>, shift: Option<&T>) -> [T; 6] {
+    let block = match shift {
+        Some(&shift) => diagonal + Sym3::identity() * shift,
+        None => diagonal,
+    };
+    (block.inverse() * T::from_f64(JACOBI_DAMPING)).entries()
+}
+
 /// Below this squared length a spring has no direction and contributes nothing.
 const TINY_SQUARED_LENGTH: f64 = 1e-30;
 
@@ -271,11 +281,8 @@ impl<T: Real> GridOperator<T> {
         for (axis, value) in diagonal.iter_mut().zip(block.entries()) {
             axis[p] += value;
         }
-        let mut block = Sym3::from_entries(diagonal.map(|a| a[p]));
-        if let Some(&shift) = self.smoother_shift.get(p) {
-            block += Sym3::identity() * shift;
-        }
-        let smoother = (block.inverse() * T::from_f64(JACOBI_DAMPING)).entries();
+        let smoother =
+            smoother_entries(Sym3::from_entries(diagonal.map(|a| a[p])), self.smoother_shift.get(p));
         for (axis, value) in self.smoother.arrays_mut().iter_mut().zip(smoother) {
             axis[p] = value;
         }
@@ -283,16 +290,12 @@ impl<T: Real> GridOperator<T> {
 
     /// `ω D⁻¹` from the diagonal blocks and the smoother's shift.
     pub fn update_smoother(&mut self) {
-        let omega = T::from_f64(JACOBI_DAMPING);
         let (nx, piece) = (self.nx, self.piece_rows());
         let (diagonal, shift) = (self.diagonal.arrays(), &self.smoother_shift);
         in_bands(self.smoother.arrays_mut(), self.ny, nx, piece, &|first, _, mut s| {
             for m in 0..s[0].len() {
-                let mut block = Sym3::from_entries(diagonal.map(|a| a[first * nx + m]));
-                if let Some(&shift) = shift.get(first * nx + m) {
-                    block += Sym3::identity() * shift;
-                }
-                for (s, e) in s.iter_mut().zip((block.inverse() * omega).entries()) {
+                let block = Sym3::from_entries(diagonal.map(|a| a[first * nx + m]));
+                for (s, e) in s.iter_mut().zip(smoother_entries(block, shift.get(first * nx + m))) {
                     s[m] = e;
                 }
             }
