@@ -136,8 +136,9 @@ fn resolve<T: Real, const CLOSED: bool, const CARRY: bool>(
     let keep = thickness * T::from_f64(KEEP);
     let floor = thickness * T::from_f64(DIRECTION_FLOOR);
     let (mut out, mut hits, mut rest) = ([[T::ZERO; LANES]; 6], [false; LANES], [false; LANES]);
-    let carried = BandFriction::lanes(band.friction.as_ref().filter(|_| CARRY), block);
-    let mut next = [(Vec3::ZERO, Vec3::ZERO); LANES];
+    // Built only where friction is carried, so that an explicit run does no work for them.
+    let carried = CARRY.then(|| BandFriction::lanes(band.friction.as_ref(), block));
+    let mut next = CARRY.then_some([(Vec3::ZERO, Vec3::ZERO); LANES]);
     for lane in 0..LANES {
         let at = |axes: [&[T; LANES]; 3]| Vec3::new(axes[0][lane], axes[1][lane], axes[2][lane]);
         let (from, end) = (at(start), at(x.each_ref().map(|a| &**a)));
@@ -168,15 +169,16 @@ fn resolve<T: Real, const CLOSED: bool, const CARRY: bool>(
         let onto = foot + direction * thickness;
         let before = at(v.each_ref().map(|a| &**a));
         let mut velocity = before;
+        let carried = carried.map(|carried| carried[lane]);
         let response = respond(
             &mut velocity,
             direction,
-            if CARRY { friction * carried[lane].friction_scale() } else { friction },
+            carried.map_or(friction, |c| friction * c.friction_scale()),
             restitution,
-            CARRY.then_some(carried[lane].friction),
+            carried.map(|c| c.friction),
         );
-        if CARRY {
-            next[lane] = (response.carried_on(carried[lane].before), response.hold());
+        if let (Some(next), Some(carried)) = (&mut next, carried) {
+            next[lane] = (response.carried_on(carried.before), response.hold());
         }
         let pick = |touched: Vec3<T>, kept: Vec3<T>| if hit { touched } else { kept };
         let (onto, velocity) = (pick(onto, end), pick(velocity, before));
@@ -188,8 +190,8 @@ fn resolve<T: Real, const CLOSED: bool, const CARRY: bool>(
     for (axis, values) in x.iter_mut().chain(v.iter_mut()).zip(&out) {
         **axis = *values;
     }
-    if let Some(carry) = &mut band.friction {
-        carry.set_lanes(block, hits, &next);
+    if let (Some(carry), Some(next)) = (&mut band.friction, &next) {
+        carry.set_lanes(block, hits, next);
     }
     let rest = rest.iter().enumerate().fold(0, |bits, (lane, &rest)| bits | u8::from(rest) << lane);
     Resolved { touched: hits.into_iter().fold(false, |any, hit| any | hit), rest }
