@@ -448,3 +448,64 @@ fn a_stopped_particle_is_held_in_the_next_solve_until_it_leaves_the_surface() {
     assert_eq!(state.velocities.get(4), Vec3::ZERO);
     assert!((state.velocities.get(5).x - 0.0495).abs() < 1e-15, "{:?}", state.velocities.get(5));
 }
+
+/// A particle of 1 kg resting on a floor with μ 0.5, tied by a damped spring of 100 N/m to a
+/// pinned particle that starts pulling it along the floor at 0.1 m/s after a second, stepped by
+/// implicit Euler at 1/60 s and by symplectic Euler at 1 ms. Before the pull static friction holds it still; pulled, it slides behind the pin at
+/// the pin's speed with the spring stretched by `μ m g / k` (49 mm), as Coulomb's kinetic friction
+/// says. A model of static friction that held the particle harder, or dragged on its motion once
+/// it slides, would leave it further behind.
+#[test]
+fn a_resting_particle_pulled_beyond_friction_slides_with_coulombs_kinetic_friction() {
+    use crate::solver::bodies::Chain;
+    use crate::solver::motion::{Keyframe, Motion, Rigid};
+    use crate::solver::pin_motion::PinMotion;
+    let (mu, g, k, speed, rest) = (0.5, 9.81, 100.0, 0.1, 0.2);
+    let mut model = Model::default();
+    model.add_chain(&Chain {
+        start: DVec3::ZERO,
+        end: DVec3::new(rest, 0.0, 0.0),
+        count: 2,
+        mass: 2.0,
+        velocity: DVec3::ZERO,
+        spring: SpringParams { stiffness: k, damping: 4.0 },
+        rest_length: None,
+        pins: vec![1],
+    });
+    let pulled = |t: f64| Keyframe {
+        t,
+        transform: Rigid { translation: DVec3::new(speed * (t - 1.0).max(0.0), 0.0, 0.0), ..Rigid::IDENTITY },
+    };
+    let motion = Motion::Keyframes(vec![pulled(0.0), pulled(1.0), pulled(10.0)]);
+    let pins = PinMotion { particles: vec![1], centre: DVec3::new(rest, 0.0, 0.0), motion };
+    for (integrator, steps_per_second) in
+        [(IntegratorKind::ImplicitEuler, 60), (IntegratorKind::SymplecticEuler, 1000)]
+    {
+        let mut config = config(integrator, 1.0 / steps_per_second as f64, vec![plane(mu, 0.0)]);
+        config.pin_motions = vec![pins.clone()];
+        let mut sim = Simulation::<f64>::new(&model, &config);
+        for _ in 0..steps_per_second {
+            sim.step().unwrap();
+        }
+        let still = sim.state().positions.get(0);
+        assert!(still.x.abs() < 1e-6 && still.y.abs() < 1e-6, "{integrator:?}: {still:?}");
+        for _ in 0..3 * steps_per_second {
+            sim.step().unwrap();
+        }
+        // Its speed over the last second: within a step an explicit step's speed swings by the
+        // friction it takes, `μ g h`.
+        let before = sim.state().positions.get(0);
+        for _ in 0..steps_per_second {
+            sim.step().unwrap();
+        }
+        let x = sim.state().positions.get(0);
+        let v = x - before;
+        let stretch = sim.state().positions.get(1).x - x.x - rest;
+        let expected = mu * 1.0 * g / k;
+        assert!(
+            (stretch - expected).abs() < 0.02 * expected,
+            "{integrator:?}: stretched {stretch} m, not {expected}"
+        );
+        assert!((v.x - speed).abs() < 0.02 * speed && x.y.abs() < 1e-6, "{integrator:?}: {x:?} {v:?}");
+    }
+}
