@@ -4,6 +4,7 @@ use serde_json::{Value, json};
 
 use super::*;
 use crate::scene::Scene;
+use crate::solver::HOLD_STIFFNESS;
 
 fn run(scene: Value) -> Recording {
     let scene = Scene::from_json(scene.to_string().as_bytes()).unwrap();
@@ -492,20 +493,19 @@ fn on_a_slope(degrees: f64, dt: f64) -> Recording {
 
 #[test]
 fn static_friction_holds_a_particle_on_a_slope_at_any_step() {
-    // tan 20° < 0.5: Coulomb's law holds the particles. Only the first step, before any friction
-    // is carried into a step, slides them, by `dt² g sin 20°` down the slope; from then on the
-    // friction that balanced them is given to them before the integrator moves them, and they
-    // stay put: at rest at the first check (64 steps), by their displacement as by their velocity.
+    // tan 20° < 0.5: Coulomb's law holds the particles. Only the first step, before they stick,
+    // slides them, by `dt² g sin 20°` down the slope; from then on each is held to the point where
+    // it stuck by its anchor spring, of stiffness `κ m / dt²`, which stretches by `1 / κ` of that
+    // slide to balance the pull down the slope (to the solve's tolerance), and they stay put: at
+    // rest at the first check (64 steps), by their displacement as by their velocity.
     let g = 9.81;
     for dt in [1.0 / 60.0, 1e-3] {
         let held = on_a_slope(20.0, dt);
         assert_eq!((held.stats.stopped_at_rest, held.stats.steps), (Some(64.0 * dt), 64), "dt {dt}");
         let first_step = dt * dt * g * 20f64.to_radians().sin();
+        let expected = first_step * (1.0 + 1.0 / HOLD_STIFFNESS);
         let slid = last_positions(&held)[0].hypot(last_positions(&held)[1]);
-        assert!(
-            (slid - first_step).abs() < 1e-9 * first_step.max(1e-6),
-            "dt {dt}: slid {slid} m, not {first_step}"
-        );
+        assert!((slid - expected).abs() < 1e-6 * expected, "dt {dt}: slid {slid} m, not {expected}");
     }
 }
 

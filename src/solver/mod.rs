@@ -30,6 +30,8 @@ mod state;
 mod tests;
 
 pub use bodies::{Chain, Cloth, Lattice, Mesh, Orientation, vertex_areas};
+#[cfg(test)]
+pub(crate) use constraints::contacts::HOLD_STIFFNESS;
 pub use constraints::contacts::{
     BVH_LEAF_SIZE, Collider, DEFAULT_FRICTION, Shape, TriangleBvh, TriangleSurface,
 };

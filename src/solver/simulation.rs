@@ -287,10 +287,9 @@ impl<T: Real> Simulation<T> {
         Err(Divergence { step: self.steps_taken, time: self.time(), reason })
     }
 
-    /// The normal of each particle's contact that the next implicit solve holds (zero where none
-    /// is), when contacts are carried from step to step.
+    /// The contacts the next implicit solve holds, when contacts are carried from step to step.
     #[cfg(test)]
-    pub(crate) fn held_contacts(&self) -> Option<&crate::solver::math::vectors::Vectors<T>> {
+    pub(crate) fn held_contacts(&self) -> Option<crate::solver::integrators::implicit::Holds<'_, T>> {
         self.contacts.as_ref().and_then(Contacts::held)
     }
 

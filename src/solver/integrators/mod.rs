@@ -18,7 +18,6 @@ mod verlet;
 use crate::solver::forces::dynamics::Dynamics;
 use crate::solver::interrupt::Interrupt;
 use crate::solver::math::real::Real;
-use crate::solver::math::vectors::Vectors;
 use crate::solver::state::State;
 
 pub use implicit::LinearSolveStats;
@@ -153,12 +152,12 @@ impl<T: Real> Stepper<T> {
         }
     }
 
-    /// Holds each particle with a non-zero `normals` entry against a surface in the next step,
-    /// for the integrators that solve (implicit Euler), with the stiffness `stiffness m / h²`
-    /// along that normal; the others take no notice.
-    pub fn hold(&mut self, normals: &Vectors<T>, stiffness: T) {
+    /// Holds the particles of `holds` against their surfaces in the next step, for the
+    /// integrators that solve (implicit Euler), with the stiffness `stiffness m / h²`; the others
+    /// take no notice.
+    pub fn hold(&mut self, holds: implicit::Holds<'_, T>, stiffness: T) {
         if let Self::ImplicitEuler(i) = self {
-            i.hold(normals, stiffness);
+            i.hold(holds, stiffness);
         }
     }
 

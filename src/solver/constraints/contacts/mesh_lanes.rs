@@ -13,7 +13,7 @@
 //! edge, or one too near the plane to have a direction) keeps its values and is left to the
 //! one-particle path.
 
-use crate::solver::constraints::contacts::carried_friction::BandFriction;
+use crate::solver::constraints::contacts::carried_friction::{BandFriction, Next};
 use crate::solver::constraints::contacts::mesh::{DIRECTION_FLOOR, MeshShape};
 use crate::solver::constraints::contacts::nearby_triangles::{KEEP, NearbyBand, Settled};
 use crate::solver::constraints::contacts::triangle_bvh::TriangleBvh;
@@ -138,7 +138,7 @@ fn resolve<T: Real, const CLOSED: bool, const CARRY: bool>(
     let (mut out, mut hits, mut rest) = ([[T::ZERO; LANES]; 6], [false; LANES], [false; LANES]);
     // Built only where friction is carried, so that an explicit run does no work for them.
     let carried = CARRY.then(|| BandFriction::lanes(band.friction.as_ref(), block));
-    let mut next = CARRY.then_some([(Vec3::ZERO, Vec3::ZERO); LANES]);
+    let mut next = CARRY.then_some([Next::NONE; LANES]);
     for lane in 0..LANES {
         let at = |axes: [&[T; LANES]; 3]| Vec3::new(axes[0][lane], axes[1][lane], axes[2][lane]);
         let (from, end) = (at(start), at(x.each_ref().map(|a| &**a)));
@@ -170,15 +170,10 @@ fn resolve<T: Real, const CLOSED: bool, const CARRY: bool>(
         let before = at(v.each_ref().map(|a| &**a));
         let mut velocity = before;
         let carried = carried.map(|carried| carried[lane]);
-        let response = respond(
-            &mut velocity,
-            direction,
-            carried.map_or(friction, |c| friction * c.friction_scale()),
-            restitution,
-            carried.map(|c| c.friction),
-        );
+        let given = carried.map(|c| c.given(end, direction));
+        let response = respond(&mut velocity, direction, friction, restitution, given);
         if let (Some(next), Some(carried)) = (&mut next, carried) {
-            next[lane] = (response.carried_on(carried.before), response.hold());
+            next[lane] = response.carry_on(&carried, carried.before, onto, true);
         }
         let pick = |touched: Vec3<T>, kept: Vec3<T>| if hit { touched } else { kept };
         let (onto, velocity) = (pick(onto, end), pick(velocity, before));

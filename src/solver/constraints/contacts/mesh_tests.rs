@@ -599,10 +599,10 @@ fn resolve_one_by_one<T: Real>(contacts: &mut Contacts<T>, state: &mut State<T>,
     let [x, y, z] = state.positions.axes_mut();
     let [u, v, w] = state.velocities.axes_mut();
     let start = contacts.start.range(0..n);
+    let h = contacts.step;
     let friction = contacts.friction.as_mut().map(|f| {
-        let (carried, before, held, next, next_held) = f.parts();
-        let (carried, before, held) = (carried.range(0..n), before.range(0..n), held.range(0..n));
-        BandFriction { carried, before, held, next, next_held }
+        let (given, next) = f.parts();
+        given.band(0..n, next, h)
     });
     let mut band = Band { start, positions: [x, y, z], velocities: [u, v, w], inverse_masses, friction };
     for p in 0..n {
@@ -632,10 +632,10 @@ fn resolve_by_blocks<T: Real>(
     let [x, y, z] = state.positions.axes_mut();
     let [u, v, w] = state.velocities.axes_mut();
     let start = contacts.start.range(0..n);
+    let h = contacts.step;
     let friction = contacts.friction.as_mut().map(|f| {
-        let (carried, before, held, next, next_held) = f.parts();
-        let (carried, before, held) = (carried.range(0..n), before.range(0..n), held.range(0..n));
-        BandFriction { carried, before, held, next, next_held }
+        let (given, next) = f.parts();
+        given.band(0..n, next, h)
     });
     let mut band = Band { start, positions: [x, y, z], velocities: [u, v, w], inverse_masses, friction };
     let (mut answered, mut answered_marked, mut marked_candidates) = (0, 0, 0);

@@ -14,14 +14,15 @@
 //! Particles that start inside are projected out when the simulation is built and again by
 //! each step. Pinned particles are never moved.
 //!
-//! With implicit Euler, whose steps are large, friction is also carried from one step into the
-//! next (`carried_friction.rs`): the steady friction that held a particle in one step is given to
-//! it before the next step moves it, so that a particle friction holds stays where it is instead
-//! of creeping by the `h² a_t` the step slid it, and the projection's friction above then
-//! applies only what that carried part did not. And a particle a fixed collider stopped is held
-//! against it in the next solve, by a stiff spring along the normal that the solve takes
-//! implicitly, so that the sheet around it sees the surface; the projection then removes what
-//! little inward motion is left, and friction's bound counts that spring's impulse too.
+//! With implicit Euler, whose steps are large, contacts also carry from one step into the next
+//! (`carried_friction.rs`). A particle a fixed collider stopped is held against it in the next
+//! solve, by a stiff spring that the solve takes implicitly, so that the sheet around it sees the
+//! surface; the projection then removes what little inward motion is left, and friction's bound
+//! counts that spring's impulse too. The spring acts along the normal for a sliding particle,
+//! whose steady friction is given to it before the next step moves it (so that the projection's
+//! friction above applies only what that carried part did not), and toward the point where it
+//! stopped for a particle that friction stopped, which is stuck there until its spring's pull
+//! leaves Coulomb's cone.
 //!
 //! Fast particles do not tunnel. A plane is a half-space: a particle that crossed it during a
 //! step is found behind it, so the end-of-step test is already continuous. Against a sphere the
@@ -70,6 +71,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 
 use crate::solver::forces::spring_blocks::{self as blocks, LANES};
+use crate::solver::integrators::implicit::Holds;
 use crate::solver::math::real::Real;
 use crate::solver::math::vec3::Vec3;
 use crate::solver::math::vectors::Vectors;
@@ -78,7 +80,7 @@ use crate::solver::parallel;
 use crate::solver::state::State;
 
 pub(crate) use carried_friction::HOLD_STIFFNESS;
-use carried_friction::{BandFriction, CarriedFriction};
+use carried_friction::{BandFriction, Carried, CarriedFriction, Given, Next};
 use nearby_triangles::{NearbyBand, NearbyTriangles};
 
 /// The friction coefficient a collider has when the scene gives none.
@@ -456,18 +458,12 @@ impl<T: Real> Band<'_, T> {
         // The response acts on the velocity relative to the surface.
         let mut velocity = at(self.velocities.each_ref().map(|a| &**a)) - surface_velocity;
         let carried = self.friction.as_ref().map(|f| f.get(p));
-        let scale = carried.map_or(T::ONE, |c| c.friction_scale());
-        let response = respond(
-            &mut velocity,
-            surface.normal,
-            c.friction * scale,
-            c.restitution,
-            carried.map(|c| c.friction),
-        );
+        let given = carried.map(|c| c.given(end, surface.normal));
+        let response = respond(&mut velocity, surface.normal, c.friction, c.restitution, given);
         if let (Some(friction), Some(carried)) = (&mut self.friction, carried) {
             // The solve holds a particle only against a fixed surface, whose normal velocity is zero.
-            let hold = if c.moving.is_none() { response.hold() } else { Vec3::ZERO };
-            friction.set(p, response.carried_on(carried.before - surface_velocity), hold);
+            let before = carried.before - surface_velocity;
+            friction.set(p, response.carry_on(&carried, before, surface.point, c.moving.is_none()));
         }
         let velocity = velocity + surface_velocity;
         let (point, velocity) = (surface.point.to_array(), velocity.to_array());
@@ -538,10 +534,9 @@ impl<T: Real> Contacts<T> {
         self
     }
 
-    /// The normal of each particle's contact that the next solve is to hold, zero where none is;
-    /// `None` when contacts are not carried.
-    pub fn held(&self) -> Option<&Vectors<T>> {
-        self.friction.as_ref().map(CarriedFriction::held)
+    /// The contacts the next solve is to hold ([`Holds`]); `None` when contacts are not carried.
+    pub fn held(&self) -> Option<Holds<'_, T>> {
+        self.friction.as_ref().map(CarriedFriction::holds)
     }
 
     /// Remembers where the particles are before a step moves them, when a collider tests their
@@ -603,13 +598,14 @@ impl<T: Real> Contacts<T> {
         for (c, nearby) in self.colliders.iter().zip(&mut self.nearby) {
             let [x, y, z] = state.positions.axes_mut();
             let [u, v, w] = state.velocities.axes_mut();
-            let (carried, next) = match &mut self.friction {
+            let (given, next) = match &mut self.friction {
                 Some(friction) => {
-                    let (carried, before, held, next, next_held) = friction.parts();
-                    (Some((carried, before, held)), Some((next, next_held)))
+                    let (given, next) = friction.parts();
+                    (Some(given), Some(next))
                 }
                 None => (None, None),
             };
+            let h = self.step;
             let rows = (([x, y, z, u, v, w], nearby.as_mut().map(NearbyTriangles::band)), next);
             parallel::in_bands(rows, n, 1, band, &|first, count, (([x, y, z, u, v, w], nearby), next)| {
                 let particles = first..first + count;
@@ -618,15 +614,7 @@ impl<T: Real> Contacts<T> {
                     positions: [x, y, z],
                     velocities: [u, v, w],
                     inverse_masses: &inverse_masses[particles.clone()],
-                    friction: carried.zip(next).map(|((carried, before, held), (next, next_held))| {
-                        BandFriction {
-                            carried: carried.range(particles.clone()),
-                            before: before.range(particles.clone()),
-                            held: held.range(particles),
-                            next,
-                            next_held,
-                        }
-                    }),
+                    friction: given.zip(next).map(|(given, next)| given.band(particles, next, h)),
                 };
                 if c.resolve_band(band, nearby) {
                     touched.store(true, Ordering::Relaxed);
@@ -671,11 +659,14 @@ impl<T: Real> Contacts<T> {
 /// The velocity change of a contact with outward unit normal `n`: restitution on the approaching
 /// normal part, Coulomb friction on the tangential part. A separating particle keeps its velocity.
 ///
-/// `carried` is the friction (a change of velocity) the particle was given at the start of the
-/// step, relative to the surface, or `None` where friction is not carried ([`carried_friction`]).
-/// The step's friction in all is what would stop the particle's tangential motion,
-/// `carried - v_t`, limited to `μ Δv_n`; the velocity takes what `carried` did not already give.
-/// The returned [`Friction`] tells what to carry into the next step.
+/// `given` is what the step gave the particle before ([`carried_friction`]), or `None` where
+/// friction is not carried: the friction (a change of velocity, relative to the surface) it was
+/// given, carried from the last step or a stuck particle's anchor spring's impulse. The step's
+/// friction in all is what would stop the particle's tangential motion, `given - v_t`, limited to
+/// `μ` times the normal impulse; the velocity takes what `given` did not already give. A stuck
+/// particle responds while anything presses it to the surface (its anchor spring or its own
+/// approach), so that it can stay stuck where the solve already stopped it. The returned
+/// [`Friction`] tells what to carry into the next step.
 ///
 /// Written without branches, so that a block of particles takes it in vector lanes
 /// ([`plane::Plane::resolve_lanes`]): every quantity is computed and the ones that do not apply
@@ -686,44 +677,65 @@ pub(crate) fn respond<T: Real>(
     n: Vec3<T>,
     friction: T,
     restitution: T,
-    carried: Option<Vec3<T>>,
+    given: Option<Given<T>>,
 ) -> Friction<T> {
     let normal_speed = v.dot(n);
     let normal_change = -(T::ONE + restitution) * normal_speed;
     let tangential = *v - n * normal_speed;
-    let limit = friction * normal_change;
-    // Written out for `None`, so that a caller without carried friction does no work for it.
-    let (stopping, responded) = match carried.map(|c| c - n * c.dot(n)) {
-        Some(carried) => {
-            let stopping = carried - tangential;
-            (stopping, tangential - carried + within(stopping, limit))
-        }
-        None => (-tangential, tangential + within(-tangential, limit)),
-    };
-    let responded = responded - n * (restitution * normal_speed);
     let approaching = normal_speed < T::ZERO;
-    *v = if approaching { responded } else { *v };
-    Friction { stopping, limit, approaching, n }
+    // Written out for `None`, so that a caller without carried friction does no work for it.
+    let (stopping, responded, limit, pressed) = match given {
+        Some(given) => {
+            let load = given.scale * normal_change.max(T::ZERO) + given.load;
+            let limit = friction * load;
+            let already = given.friction - n * given.friction.dot(n);
+            let stopping = already - tangential;
+            let pressed = approaching | (given.stuck & (load > T::ZERO));
+            // A stuck particle that slides keeps the velocity the solve gave it: its anchor
+            // spring was its friction there, and giving back the spring's impulse beyond the cone
+            // would give it a velocity the sheet around it never saw.
+            let slides = stopping.length_squared() > limit * limit;
+            let responded = if given.stuck & slides {
+                tangential
+            } else {
+                tangential - already + within(stopping, limit)
+            };
+            (stopping, responded, limit, pressed)
+        }
+        None => {
+            let limit = friction * normal_change;
+            (-tangential, tangential + within(-tangential, limit), limit, approaching)
+        }
+    };
+    let normal = if approaching { T::ZERO - restitution * normal_speed } else { normal_speed };
+    *v = if pressed { responded + n * normal } else { *v };
+    Friction { stopping, limit, pressed, n }
 }
 
-/// The friction of one contact's response, from which the friction to carry on follows.
+/// The friction of one contact's response, from which what to carry on follows.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Friction<T> {
     /// The tangential change of velocity that would have stopped the particle in the step.
     stopping: Vec3<T>,
-    /// The most friction could change it by, `μ Δv_n`.
+    /// The most friction could change it by, `μ` times the normal impulse.
     limit: T,
-    /// Whether the particle approached the surface (else nothing was done).
-    approaching: bool,
+    /// Whether the surface pressed on the particle (else nothing was done).
+    pressed: bool,
     n: Vec3<T>,
 }
 
 impl<T: Real> Friction<T> {
-    /// The normal of the contact for the next solve to hold: the surface's, if the particle
-    /// approached it (the projection stopped it), else zero.
+    /// The normal of the contact for the next solve to hold: the surface's, if it pressed on the
+    /// particle (the projection stopped it, or it stayed stuck), else zero.
     #[inline(always)]
     pub fn hold(&self) -> Vec3<T> {
-        if self.approaching { self.n } else { Vec3::ZERO }
+        if self.pressed { self.n } else { Vec3::ZERO }
+    }
+
+    /// Whether friction stopped the particle within Coulomb's cone.
+    #[inline(always)]
+    pub fn sticks(&self) -> bool {
+        self.pressed & (self.limit > T::ZERO) & (self.stopping.length_squared() <= self.limit * self.limit)
     }
 
     /// The friction to carry into the next step, for a particle whose velocity at the start of the
@@ -733,7 +745,37 @@ impl<T: Real> Friction<T> {
     #[inline(always)]
     pub fn carried_on(&self, before: Vec3<T>) -> Vec3<T> {
         let steady = within(self.stopping + before - self.n * before.dot(self.n), self.limit);
-        if self.approaching { steady } else { Vec3::ZERO }
+        if self.pressed { steady } else { Vec3::ZERO }
+    }
+
+    /// What a particle that was given `carried` carries on, `before` its velocity at the start of
+    /// the step relative to the surface and `point` where the projection put it, against a fixed
+    /// surface (`fixed`) or a moving one.
+    ///
+    /// Against a fixed surface, a particle friction stopped within the cone is stuck: to the point
+    /// where it stopped, or to its anchor if it was stuck already, so that it cannot creep, and it
+    /// is given no carried friction, its anchor spring holding it instead. One friction did not
+    /// stop slides, held along the normal. It carries its steady friction on, unless it was stuck:
+    /// a stuck particle's friction is its anchor spring's impulse, which holds the stiff spring's
+    /// reaction as well as the steady load, and carried into the next step it would kick the
+    /// particle back toward its old anchor (`docs/decisions.md`, "Static friction held in the
+    /// solve by an anchor spring"); the next step's own response gives it kinetic friction.
+    /// Against a moving surface nothing is held, and only friction is carried.
+    #[inline(always)]
+    pub(super) fn carry_on(
+        &self,
+        carried: &Carried<T>,
+        before: Vec3<T>,
+        point: Vec3<T>,
+        fixed: bool,
+    ) -> Next<T> {
+        let stuck = fixed & self.sticks();
+        Next {
+            friction: if stuck | carried.stuck { Vec3::ZERO } else { self.carried_on(before) },
+            hold: if fixed { self.hold() } else { Vec3::ZERO },
+            stuck,
+            anchor: if carried.stuck { carried.anchor } else { point },
+        }
     }
 }
 

@@ -2,7 +2,7 @@
 
 use glam::DVec3;
 
-use super::carried_friction::BandFriction;
+use super::carried_friction::{BandFriction, Next};
 use super::{Surface, respond};
 use crate::solver::forces::spring_blocks::LANES;
 use crate::solver::math::real::Real;
@@ -64,22 +64,17 @@ impl<T: Real> Plane<T> {
         // vector instruction wide.
         let (mut out, mut hits) = ([[T::ZERO; LANES]; 6], [false; LANES]);
         let carried = BandFriction::lanes(carry.as_deref().filter(|_| CARRY), first);
-        let mut next = [(Vec3::ZERO, Vec3::ZERO); LANES];
+        let mut next = [Next::NONE; LANES];
         for lane in 0..LANES {
             let at = Vec3::new(x[0][lane], x[1][lane], x[2][lane]);
             let depth = self.signed_distance(at);
             let hit = (depth <= T::ZERO) & (inverse_masses[lane] != T::ZERO);
             let onto = at - self.normal * depth;
             let mut velocity = Vec3::new(v[0][lane], v[1][lane], v[2][lane]);
-            let response = respond(
-                &mut velocity,
-                self.normal,
-                if CARRY { friction * carried[lane].friction_scale() } else { friction },
-                restitution,
-                CARRY.then_some(carried[lane].friction),
-            );
+            let given = CARRY.then(|| carried[lane].given(at, self.normal));
+            let response = respond(&mut velocity, self.normal, friction, restitution, given);
             if CARRY {
-                next[lane] = (response.carried_on(carried[lane].before), response.hold());
+                next[lane] = response.carry_on(&carried[lane], carried[lane].before, onto, true);
             }
             let pick = |touched: Vec3<T>, kept: Vec3<T>| if hit { touched } else { kept };
             let (onto, velocity) =

@@ -25,6 +25,12 @@ fn particle(position: DVec3, velocity: DVec3) -> Model {
     m
 }
 
+/// What the response reads of a particle given the carried friction `friction`, neither held nor
+/// stuck.
+fn given_friction(friction: Vec3<f64>) -> Given<f64> {
+    Given { friction, scale: 1.0, load: 0.0, stuck: false }
+}
+
 fn config(integrator: IntegratorKind, dt: f64, colliders: Vec<Collider>) -> Config {
     Config { integrator, dt, colliders, ..Config::default() }
 }
@@ -187,7 +193,8 @@ fn friction_stops_slow_sliding_and_only_slows_fast_sliding() {
     assert!((fast - expected).length() < 1e-15, "{fast:?}");
     // A separating particle is untouched, and carries nothing on.
     let mut leaving = Vec3::new(1.0, 0.5, 0.0);
-    let carried = respond(&mut leaving, n, 0.5, 0.5, Some(Vec3::new(-0.01, 0.0, 0.0))).carried_on(none);
+    let carried =
+        respond(&mut leaving, n, 0.5, 0.5, Some(given_friction(Vec3::new(-0.01, 0.0, 0.0)))).carried_on(none);
     assert_eq!((leaving, carried), (Vec3::new(1.0, 0.5, 0.0), none));
 }
 
@@ -199,12 +206,14 @@ fn friction_carries_its_steady_part_into_the_next_step() {
     // Held: the friction given at the start balanced the step's push exactly; it stays still and
     // carries the same friction on.
     let mut held = Vec3::new(0.0, -0.1, 0.0);
-    let carried = respond(&mut held, n, 0.5, 0.0, Some(Vec3::new(-0.02, 0.0, 0.0))).carried_on(Vec3::ZERO);
+    let carried = respond(&mut held, n, 0.5, 0.0, Some(given_friction(Vec3::new(-0.02, 0.0, 0.0))))
+        .carried_on(Vec3::ZERO);
     assert!(close(held, Vec3::ZERO) && close(carried, Vec3::new(-0.02, 0.0, 0.0)), "{held:?} {carried:?}");
     // Arriving at 0.03 along x and pushed 0.01 further in the step: stopped (0.04 is within
     // 0.05), but only the push, not the stopping of its arrival, is carried on.
     let mut arriving = Vec3::new(0.04, -0.1, 0.0);
-    let carried = respond(&mut arriving, n, 0.5, 0.0, Some(Vec3::ZERO)).carried_on(Vec3::new(0.03, 0.0, 0.0));
+    let carried = respond(&mut arriving, n, 0.5, 0.0, Some(given_friction(Vec3::ZERO)))
+        .carried_on(Vec3::new(0.03, 0.0, 0.0));
     assert!(
         close(arriving, Vec3::ZERO) && close(carried, Vec3::new(-0.01, 0.0, 0.0)),
         "{arriving:?} {carried:?}"
@@ -213,7 +222,7 @@ fn friction_carries_its_steady_part_into_the_next_step() {
     // step: it ends at 0.96, its whole friction of the step 0.05, and carries on the friction that
     // balances the push. The normal part of the carried friction is dropped.
     let mut sliding = Vec3::new(0.96, -0.1, 0.0);
-    let carried = respond(&mut sliding, n, 0.5, 0.0, Some(Vec3::new(-0.05, 0.3, 0.0)))
+    let carried = respond(&mut sliding, n, 0.5, 0.0, Some(given_friction(Vec3::new(-0.05, 0.3, 0.0))))
         .carried_on(Vec3::new(1.0, 0.0, 0.0));
     assert!(
         close(sliding, Vec3::new(0.96, 0.0, 0.0)) && close(carried, Vec3::new(-0.01, 0.0, 0.0)),
@@ -408,32 +417,42 @@ fn the_start_of_a_step_is_kept_only_for_colliders_that_test_paths() {
 }
 
 /// Which contacts the next implicit solve holds, against a floor with μ 0.5, over two steps of
-/// 1/60 s: every particle the projection stops is held; one held before stays held while it
-/// lies within reach of the surface without leaving it, and is let go once it leaves or lies
-/// beyond reach. A held particle's friction counts the held spring's impulse, `κ` times the
-/// projection's own, so it stops what an unheld particle would only slow.
+/// 1/60 s: every particle the projection stops is held, and one that friction stopped is stuck to
+/// the point where it stopped; one held before stays held while it lies within reach of the
+/// surface without leaving it, and is let go once it leaves or lies beyond reach. A stuck
+/// particle's friction is its anchor spring's impulse, bounded by that impulse's normal part and
+/// the projection's: within Coulomb's cone it stays stuck, beyond it it slides.
 #[test]
 fn a_stopped_particle_is_held_in_the_next_solve_until_it_leaves_the_surface() {
     let h = 1.0 / 60.0;
     let mut contacts = Contacts::<f64>::new(&[plane(0.5, 0.0)], 6).unwrap().with_carried_friction();
     let up = Vec3::new(0.0, 1.0, 0.0);
-    let at = |y: f64| Vec3::new(0.0, y, 0.0);
+    let at = |x: f64, y: f64| Vec3::new(x, y, 0.0);
     let mut state = State {
-        positions: (0..6).map(|_| at(-1e-4)).collect(),
+        positions: (0..6).map(|_| at(0.0, -1e-4)).collect(),
         velocities: (0..6).map(|p| if p == 5 { Vec3::ZERO } else { Vec3::new(0.0, -0.1, 0.0) }).collect(),
     };
     contacts.begin_step(&state.positions.clone(), &mut state.velocities, h);
     contacts.resolve(&mut state, &[1.0; 6]);
-    let held: Vec<Vec3<f64>> = contacts.held().unwrap().iter().collect();
+    let holds = contacts.held().unwrap();
+    let held: Vec<Vec3<f64>> = holds.normals.iter().collect();
     assert_eq!(held, [up, up, up, up, up, Vec3::ZERO], "the particle at rest was not stopped");
+    let (anchors, stuck) = holds.anchored.unwrap();
+    assert_eq!(stuck, [true, true, true, true, true, false]);
+    assert!((0..5).all(|p| anchors.get(p) == Vec3::ZERO));
 
+    // The solve took the stuck particles 0 and 4 from their anchor (the origin) 1e-5 m into the
+    // floor and sideways, particle 0 by a fifth of that and particle 4 by four fifths: friction
+    // holds them while the sideways part is within `μ` of the inward one.
+    let depth = 1e-5;
+    let pushed = |sideways: f64| (at(sideways * depth, -depth), at(sideways * depth, -depth) * (1.0 / h));
     let next = [
-        (at(-1e-5), Vec3::new(0.0, -0.01, 0.0)),   // stopped again
-        (at(1e-7), Vec3::ZERO),                    // lying on the surface
-        (at(1e-7), Vec3::new(0.0, 0.01, 0.0)),     // leaving it
-        (at(2e-4), Vec3::ZERO),                    // beyond reach
-        (at(-1e-6), Vec3::new(0.05, -0.001, 0.0)), // held, sliding in
-        (at(-1e-6), Vec3::new(0.05, -0.001, 0.0)), // the same, not held
+        pushed(0.2),                                    // stuck, within the cone
+        (at(0.0, 1e-7), Vec3::ZERO),                    // lying on the surface
+        (at(0.0, 1e-7), Vec3::new(0.0, 0.01, 0.0)),     // leaving it
+        (at(0.0, 2e-4), Vec3::ZERO),                    // beyond reach
+        pushed(0.8),                                    // stuck, beyond the cone
+        (at(0.0, -1e-6), Vec3::new(0.05, -0.001, 0.0)), // not held, sliding in
     ];
     contacts.begin_step(&state.positions.clone(), &mut state.velocities, h);
     for (p, (x, v)) in next.into_iter().enumerate() {
@@ -441,11 +460,17 @@ fn a_stopped_particle_is_held_in_the_next_solve_until_it_leaves_the_surface() {
         state.velocities.set(p, v);
     }
     contacts.resolve(&mut state, &[1.0; 6]);
-    let held: Vec<Vec3<f64>> = contacts.held().unwrap().iter().collect();
+    let holds = contacts.held().unwrap();
+    let held: Vec<Vec3<f64>> = holds.normals.iter().collect();
     assert_eq!(held, [up, up, Vec3::ZERO, Vec3::ZERO, up, up]);
-    // Friction can take 0.5 · 0.001 from the unheld particle's 0.05, and 101 times that, all of
-    // it, from the held one's.
-    assert_eq!(state.velocities.get(4), Vec3::ZERO);
+    let (anchors, stuck) = holds.anchored.unwrap();
+    assert_eq!(stuck, [true, true, false, false, false, false]);
+    assert_eq!((anchors.get(0), anchors.get(1)), (Vec3::ZERO, Vec3::ZERO));
+    assert_eq!(state.velocities.get(0), Vec3::ZERO);
+    // Particle 4 slides: it keeps the velocity the solve gave it (its anchor spring was its
+    // friction there), and is held along the normal from now on.
+    assert_eq!(state.velocities.get(4), Vec3::new(pushed(0.8).1.x, 0.0, 0.0));
+    // Friction can take 0.5 · 0.001 from the unheld particle's 0.05.
     assert!((state.velocities.get(5).x - 0.0495).abs() < 1e-15, "{:?}", state.velocities.get(5));
 }
 

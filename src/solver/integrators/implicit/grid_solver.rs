@@ -218,8 +218,8 @@ impl<T: Real> GridSolver<T> {
         };
         for held in input.held {
             let p = held.particle;
-            let v = Vec3::new(input.velocities[0][p], input.velocities[1][p], input.velocities[2][p]);
-            let (block, pull) = held.terms(self.mass[p], v);
+            let at = |field: &Field<T>| Vec3::new(field[0][p], field[1][p], field[2][p]);
+            let (block, pull) = held.terms(self.mass[p], at(input.positions), at(input.velocities), h);
             system.add_to_diagonal(p, block);
             for (axis, value) in self.rhs.iter_mut().zip(pull.to_array()) {
                 axis[p] += value;

@@ -90,21 +90,45 @@ pub(crate) struct StepInput<'a, T> {
 /// A particle the solve holds against a surface: the stiffness `κ m / h²` along the normal `n`,
 /// which adds the block `κ m n nᵀ` to the system's diagonal (its mass part scaled as the
 /// system's is) and `-κ m (v·n) n` to the right-hand side, so that the particle keeps `1 / (1 +
-/// κ)` of the inward motion the solve would give it.
+/// κ)` of the inward motion the solve would give it. A stuck particle is held in all three
+/// directions to its anchor `a` instead: the block `κ m I` and `-κ m (v + (x - a) / h)`, the
+/// implicit spring `κ m / h² (a - x')` at the step's end `x' = x + h v'`.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Held<T> {
     pub particle: usize,
     pub normal: Vec3<T>,
+    /// The anchor of a stuck particle.
+    pub anchor: Option<Vec3<T>>,
     /// `κ`, the spring's stiffness in units of `m / h²`.
     pub stiffness: T,
 }
 
 impl<T: Real> Held<T> {
     /// The block the spring adds to the diagonal of a particle whose system mass (its mass with
-    /// drag's share) is `mass`, and what it adds to the right-hand side at velocity `v`.
-    pub fn terms(&self, mass: T, v: Vec3<T>) -> (Sym3<T>, Vec3<T>) {
+    /// drag's share) is `mass`, and what it adds to the right-hand side at position `x` and
+    /// velocity `v`, for a step of `h`.
+    pub fn terms(&self, mass: T, x: Vec3<T>, v: Vec3<T>, h: T) -> (Sym3<T>, Vec3<T>) {
         let k = self.stiffness * mass;
-        (Sym3::outer(self.normal) * k, self.normal * (T::ZERO - k * v.dot(self.normal)))
+        match self.anchor {
+            Some(anchor) => (Sym3::identity() * k, (v + (x - anchor) * (T::ONE / h)) * (T::ZERO - k)),
+            None => (Sym3::outer(self.normal) * k, self.normal * (T::ZERO - k * v.dot(self.normal))),
+        }
+    }
+}
+
+/// The contacts a solve holds: each particle's contact normal (zero where it is not held), and,
+/// where contacts carry friction, which held particles are stuck and to which anchors.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Holds<'a, T> {
+    pub normals: &'a Vectors<T>,
+    pub anchored: Option<(&'a Vectors<T>, &'a [bool])>,
+}
+
+impl<'a, T> Holds<'a, T> {
+    /// Particles held along `normals`, none stuck.
+    #[cfg(test)]
+    pub fn along(normals: &'a Vectors<T>) -> Self {
+        Self { normals, anchored: None }
     }
 }
 
@@ -196,12 +220,16 @@ impl<T: Real> Implicit<T> {
         self.stats
     }
 
-    /// Holds each particle with a non-zero `normals` entry against its surface in the next solve,
-    /// with the stiffness `stiffness m / h²` along that normal.
-    pub fn hold(&mut self, normals: &Vectors<T>, stiffness: T) {
+    /// Holds each particle with a non-zero normal in `holds` against its surface in the next
+    /// solve, with the stiffness `stiffness m / h²`: along that normal, or toward its anchor if
+    /// it is stuck.
+    pub fn hold(&mut self, holds: Holds<'_, T>, stiffness: T) {
         self.held.clear();
-        let held = normals.iter().enumerate().filter(|(_, n)| *n != Vec3::ZERO);
-        self.held.extend(held.map(|(particle, normal)| Held { particle, normal, stiffness }));
+        let held = holds.normals.iter().enumerate().filter(|(_, n)| *n != Vec3::ZERO);
+        self.held.extend(held.map(|(particle, normal)| {
+            let anchor = holds.anchored.filter(|(_, stuck)| stuck[particle]).map(|(a, _)| a.get(particle));
+            Held { particle, normal, anchor, stiffness }
+        }));
     }
 
     /// One step; when interrupted, the state is left as it was.

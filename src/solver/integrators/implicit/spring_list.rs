@@ -159,7 +159,7 @@ impl<T: Real> SpringListSolver<T> {
         self.held.clear();
         for held in input.held {
             let p = held.particle;
-            let (block, pull) = held.terms(self.mass_diagonal[p], v[p]);
+            let (block, pull) = held.terms(self.mass_diagonal[p], x[p], v[p], h);
             self.held.push((p, block));
             self.preconditioner[p] += block;
             self.rhs[p] += pull;

@@ -81,14 +81,14 @@ fn a_held_particle_keeps_a_one_over_one_plus_kappa_share_of_its_inward_step() {
         }
     }) {
         let (mut state, mut dynamics) = start::<f64>(&model, 0.0);
-        implicit.hold(&up, kappa);
+        implicit.hold(Holds::along(&up), kappa);
         implicit.step(&mut state, &mut dynamics, 0.0, h).expect("nothing interrupts it");
         let expected = -9.81 * h / (1.0 + kappa);
         for v in state.velocities.iter() {
             assert!((v.y - expected).abs() < 1e-12 && v.x.abs() < 1e-12 && v.z.abs() < 1e-12, "{v:?}");
         }
         // Held no longer, the next step takes the particles down as a free fall would.
-        implicit.hold(&Vectors::zeros(up.len()), kappa);
+        implicit.hold(Holds::along(&Vectors::zeros(up.len())), kappa);
         let before = state.velocities.get(0).y;
         implicit.step(&mut state, &mut dynamics, 0.0, h).expect("nothing interrupts it");
         assert!((state.velocities.get(0).y - (before - 9.81 * h)).abs() < 1e-12);
@@ -390,10 +390,10 @@ fn aggregation_solves_a_mesh_in_contact_in_a_fraction_of_block_jacobis_iteration
         state.positions.iter().filter(|x| (x.to_dvec3() - DVec3::new(0.0, 0.5, 0.0)).length() < 0.31).count();
     assert!(in_contact >= 50, "{in_contact} particles on the sphere");
 
-    let held = simulation.held_contacts().expect("contacts are carried").clone();
+    let held = simulation.held_contacts().expect("contacts are carried");
     let mut dynamics = Dynamics::new(&model, config.gravity, config.drag);
     let solve = |implicit: &mut Implicit<f64>, dynamics: &mut Dynamics<f64>| {
-        implicit.hold(&held, HOLD_STIFFNESS);
+        implicit.hold(held, HOLD_STIFFNESS);
         let mut after = state.clone();
         implicit.step(&mut after, dynamics, 0.0, config.dt).expect("nothing interrupts it");
         assert_eq!(implicit.stats().unconverged_solves, 0);
@@ -433,7 +433,7 @@ fn single_system_iterations(
     model: &Model,
     config: &Config,
     state: &State<f64>,
-    held: Option<&Vectors<f64>>,
+    held: Option<Holds<'_, f64>>,
 ) -> [usize; 3] {
     let mut dynamics = Dynamics::new(model, config.gravity, config.drag);
     let solvers = [
