@@ -203,7 +203,7 @@ impl<T: Real> CarriedFriction<T> {
         }
     }
 
-    /// What the step was given, to be cut into bands ([`Given::band`]), with the rows that the
+    /// What the step was given, to be cut into bands ([`GivenParts::band`]), with the rows that the
     /// step's contacts write what they carry on into.
     pub fn parts(&mut self) -> (GivenParts<'_, T>, NextRows<'_, T>) {
         let Self { given, before, next } = self;
