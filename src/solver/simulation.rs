@@ -339,6 +339,12 @@ impl<T: Real> Simulation<T> {
         self.stable_dt.map(|h| h * self.integrator.stability_factor())
     }
 
+    /// The integrator, for tests that look inside it.
+    #[cfg(test)]
+    pub(crate) fn stepper(&self) -> &crate::solver::integrators::Stepper<T> {
+        &self.stepper
+    }
+
     /// The linear solver's figures, for implicit integration.
     pub fn linear_solve_stats(&self) -> Option<LinearSolveStats> {
         self.stepper.linear_solve_stats()

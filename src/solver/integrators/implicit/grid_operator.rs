@@ -128,8 +128,10 @@ impl<T: Real> GridOperator<T> {
     }
 
     /// Builds `M + h D + h² K` at `positions` (`mass` per particle, already including drag),
-    /// with spring rest lengths scaled by `rest_scale`, and the smoother. With `rhs`, also adds
-    /// `-h² K v` to the right-hand side.
+    /// with spring rest lengths scaled by `rest_scale`. With `rhs`, also adds `-h² K v` to the
+    /// right-hand side. The smoother is left as it was: a step's own system in `f64` only
+    /// computes products, and the multigrid level that smooths with it calls
+    /// [`update_smoother`](Self::update_smoother) once its diagonal is complete.
     ///
     /// Two passes over the rows, each split over the pool's threads on a parallel operator: the
     /// first computes every spring's coupling (and its right-hand-side term) at its lower end; the
@@ -232,7 +234,6 @@ impl<T: Real> GridOperator<T> {
             None => in_bands(self.diagonal.arrays_mut(), ny, nx, band, &gather_diagonal),
         }
         self.decouple_pinned(mass);
-        self.update_smoother();
     }
 
     /// Rows per band when the operator's products and assembly are split over the pool's
@@ -275,16 +276,10 @@ impl<T: Real> GridOperator<T> {
         &mut self.smoother_shift
     }
 
-    /// Adds `block` to particle `p`'s diagonal block and updates its smoother.
+    /// Adds `block` to particle `p`'s diagonal block (the smoother is not updated).
     pub fn add_to_diagonal(&mut self, p: usize, block: Sym3<T>) {
-        let mut diagonal = self.diagonal.arrays_mut();
-        for (axis, value) in diagonal.iter_mut().zip(block.entries()) {
+        for (axis, value) in self.diagonal.arrays_mut().iter_mut().zip(block.entries()) {
             axis[p] += value;
-        }
-        let smoother =
-            smoother_entries(Sym3::from_entries(diagonal.map(|a| a[p])), self.smoother_shift.get(p));
-        for (axis, value) in self.smoother.arrays_mut().iter_mut().zip(smoother) {
-            axis[p] = value;
         }
     }
 

@@ -13,6 +13,18 @@
 //! solve's memory traffic is in the cycle's products, and a preconditioner only has to be about
 //! right, so the `f64` solve still reaches its tolerance on its own residual in about the same
 //! number of iterations. An `f32` run assembles its system straight into the cycle's fine level.
+//!
+//! The cycle's fine level is renewed every step, but its coarse levels, whose Galerkin products
+//! cost more than the solve's iterations, are refilled only when a solve needs them: at the first
+//! step, when the step size changes, and when a solve on older coarse levels has taken
+//! [`LAG_SLACK`] iterations more than the last solve that began on coarse levels of its own. That
+//! solve then refills them and restarts conjugate gradients from where it is, so a lagging
+//! preconditioner costs at most those iterations. After such a solve the next 2, then 4, up to
+//! [`MOST_STEPS_REFILLED`] steps refill at their start before one tries older levels again, so
+//! that solves which never keep up on older levels (a cloth solved far below the default
+//! reduction, whose every solve is long) lose only a slack's iterations now and then. A cycle
+//! with older coarse levels is still symmetric; should it stop being definite on a residual,
+//! the solve refills them too.
 
 use std::any::{Any, TypeId};
 
@@ -59,7 +71,27 @@ pub(crate) struct GridSolver<T> {
     bending: Option<BendingElements<T>>,
     /// The current step.
     h: T,
+    /// Whether the multigrid's coarse levels were refilled from this step's system.
+    coarse_fresh: bool,
+    /// Iterations of the last solve whose coarse levels were refilled from its own system at its
+    /// start, or `None` before the first: a solve on older coarse levels that takes
+    /// [`LAG_SLACK`] more refills them and starts again.
+    fresh_iterations: Option<usize>,
+    /// Solves on older coarse levels that fell behind since the last one that did not.
+    fallen_behind: u32,
+    /// Steps that refill the coarse levels at their start before one tries older ones again.
+    steps_to_refill: usize,
+    /// How many times the coarse levels were refilled.
+    refills: u64,
 }
+
+/// How many iterations more than the last solve on coarse levels of its own system a solve on
+/// older ones may take before it refills them and restarts.
+const LAG_SLACK: usize = 1;
+
+/// The most steps that refill the coarse levels at their start after a solve on older ones fell
+/// behind.
+const MOST_STEPS_REFILLED: usize = 32;
 
 impl<T: Real> GridSolver<T> {
     /// The solver for `dynamics`, if it is a single grid cloth as described above.
@@ -159,6 +191,11 @@ impl<T: Real> GridSolver<T> {
             pieces: vec![0.0; 3 * n.div_ceil(PIECE)],
             bending: dynamics.bending.clone(),
             h: T::ZERO,
+            coarse_fresh: false,
+            fresh_iterations: None,
+            fallen_behind: 0,
+            steps_to_refill: 0,
+            refills: 0,
         })
     }
 
@@ -208,6 +245,7 @@ impl<T: Real> GridSolver<T> {
             None => shared(self.multigrid.fine_mut()),
         };
         system.assemble(input.positions, &self.mass, &self.families, T::ONE, h, Some(rhs));
+        let new_step = h != self.h;
         self.h = h;
         if let Some(hinges) = &self.bending {
             hinges.add_velocity_term(h, input.velocities.arrays(), self.rhs.arrays_mut());
@@ -226,10 +264,35 @@ impl<T: Real> GridSolver<T> {
             }
         }
         let round = |value: T| value.to_f64() as f32;
-        self.multigrid.assemble::<T>(self.system.as_ref(), round(h), None);
+        let stale = self.multigrid.assemble_fine::<T>(self.system.as_ref(), round(h), None);
+        self.coarse_fresh = false;
+        let waiting = self.steps_to_refill > 0;
+        self.steps_to_refill = self.steps_to_refill.saturating_sub(1);
+        if stale || new_step || waiting || self.fresh_iterations.is_none() {
+            self.refill_coarse();
+        }
         zero_pinned(&mut self.rhs, &self.pinned);
         zero_pinned(&mut self.delta_v, &self.pinned);
         self.conjugate_gradients(stopping, interrupt)
+    }
+
+    fn refill_coarse(&mut self) {
+        self.multigrid.refill_coarse();
+        self.coarse_fresh = true;
+        self.refills += 1;
+    }
+
+    /// How many times the coarse levels were refilled, over all solves.
+    #[cfg(test)]
+    pub fn refills(&self) -> u64 {
+        self.refills
+    }
+
+    /// `z = B r` by one V-cycle, and `r·z`.
+    fn precondition(&mut self) -> f64 {
+        self.multigrid.precondition(&mut self.residual, &mut self.preconditioned);
+        let parallel = self.multigrid.fine().is_parallel();
+        dot_pieces(&self.residual, &self.preconditioned, &mut self.pieces, parallel)
     }
 
     /// The last solution.
@@ -261,19 +324,36 @@ impl<T: Real> GridSolver<T> {
         let mut residual_norm = dot_pieces(&self.residual, &self.residual, pieces, parallel).sqrt();
         let target = stopping.target(rhs_norm, residual_norm);
         let mut iterations = 0;
+        // The iteration at which conjugate gradients last (re)started, with a fresh search
+        // direction: at the start, or when the coarse levels were refilled part-way.
+        let mut start = 0;
+        let lag_limit = self.fresh_iterations.map_or(usize::MAX, |n| n + LAG_SLACK);
         let mut rz = 0.0;
         while residual_norm > target && iterations < stopping.max_iterations {
             if interrupt.is_some_and(Interrupt::is_raised) {
                 return Err(Interrupted);
             }
-            self.multigrid.precondition(&mut self.residual, &mut self.preconditioned);
-            let rz_next = dot_pieces(&self.residual, &self.preconditioned, pieces, parallel);
-            // s = z on the first iteration, z + β s after.
-            let beta = if iterations == 0 { T::ZERO } else { T::from_f64(rz_next / rz) };
+            let mut rz_next = self.precondition();
+            // Older coarse levels that slow the solve, or no longer make the cycle definite,
+            // are refilled, and the solve restarts from where it is.
+            let definite = rz_next > 0.0;
+            if !self.coarse_fresh && (iterations >= lag_limit || !definite) {
+                self.fallen_behind += 1;
+                self.steps_to_refill = 1usize
+                    .checked_shl(self.fallen_behind)
+                    .map_or(MOST_STEPS_REFILLED, |n| n.min(MOST_STEPS_REFILLED));
+                self.refill_coarse();
+                start = iterations;
+                rz_next = self.precondition();
+            }
+            // s = z on a (re)start, z + β s after.
+            let restart = start == iterations;
+            let beta = if restart { T::ZERO } else { T::from_f64(rz_next / rz) };
+            let pieces = &mut self.pieces;
             for (s, z) in self.search.iter_mut().zip(&self.preconditioned) {
                 let update = |(s, z): (&mut [T], &[T])| {
                     for (s, &z) in s.iter_mut().zip(z) {
-                        *s = if iterations == 0 { z } else { z + *s * beta };
+                        *s = if restart { z } else { z + *s * beta };
                     }
                 };
                 if parallel {
@@ -324,6 +404,13 @@ impl<T: Real> GridSolver<T> {
             }
             residual_norm = pieces.iter().sum::<f64>().sqrt();
             iterations += 1;
+        }
+        if start == 0 {
+            if self.coarse_fresh {
+                self.fresh_iterations = Some(iterations);
+            } else {
+                self.fallen_behind = 0;
+            }
         }
         Ok(SolveOutcome {
             iterations,

@@ -5,7 +5,10 @@
 //! ([`level_bending`](super::level_bending)). Each coarser level keeps every other particle in
 //! both directions (`⌈n/2⌉`; on an even grid the last fine column and row are extrapolated from
 //! the last coarse one) and is the Galerkin product `Pᵀ A P` of the level above
-//! ([`galerkin`](super::galerkin)), bending included, refilled every step.
+//! ([`galerkin`](super::galerkin)), bending included. Level 0 is renewed every step; the caller
+//! decides when the coarse levels are refilled from it ([`Multigrid::refill_coarse`]): a drape's
+//! system changes little from one step to the next, and the coarse correction of a nearby system
+//! still preconditions it well.
 //!
 //! Galerkin levels, not the cloth rediscretised on the coarse grid: a rediscretised level is the
 //! springs between the coarse particles at their current positions, which stands for the fine
@@ -145,20 +148,36 @@ impl<T: Real> Multigrid<T> {
     /// `S_p` per particle, the identity on a free particle), the cycle preconditions the
     /// filtered system `S A S + (I − S)` instead, and every coarse level is the Galerkin product
     /// of the filtered level 0, so the coarse levels keep the constraints too.
+    #[cfg(test)]
     pub fn assemble<S: Real>(&mut self, system: Option<&GridOperator<S>>, h: T, filter: Option<&[Sym3<S>]>) {
+        self.assemble_fine(system, h, filter);
+        self.refill_coarse();
+    }
+
+    /// The first half of [`assemble`](Self::assemble): level 0 and its smoother, leaving the
+    /// coarse levels as the last [`refill_coarse`](Self::refill_coarse) made them. The cycle is
+    /// then still symmetric, its coarse correction that of a nearby system. Returns whether the
+    /// coarse levels must be refilled before the next cycle: the step, and with it the bending
+    /// elements' weight, changed, a filter holds particles (the coarse levels carry it), or
+    /// there is no coarse level (the coarsest factor is level 0's).
+    pub fn assemble_fine<S: Real>(
+        &mut self,
+        system: Option<&GridOperator<S>>,
+        h: T,
+        filter: Option<&[Sym3<S>]>,
+    ) -> bool {
         let h64 = h.to_f64();
-        let mut bending_changed = false;
+        let mut stale = false;
         if let Some(bending) = &mut self.bending
             && bending.set_step(h64 * h64, h64)
         {
             self.fine.smoother_shift_mut().copy_from_slice(bending.smoother_shift());
-            bending_changed = true;
+            stale = true;
         }
         match system {
             Some(system) => self.fine.copy_from(system),
-            // The fine level was assembled before its smoother's shift changed.
-            None if bending_changed => self.fine.update_smoother(),
-            None => {}
+            // The fine level was assembled in place, which leaves its smoother to the level.
+            None => self.fine.update_smoother(),
         }
         self.held.clear();
         if let Some(filter) = filter {
@@ -170,6 +189,12 @@ impl<T: Real> Multigrid<T> {
                 }
             }
         }
+        stale || !self.held.is_empty() || self.coarse.is_empty()
+    }
+
+    /// The second half of [`assemble`](Self::assemble): level 0 as blocks, every coarse level as
+    /// the Galerkin product of the one above, and the coarsest level's factor.
+    pub fn refill_coarse(&mut self) {
         self.blocks.fill_from_system(&self.fine, self.bending.as_ref(), &self.held, &self.filter);
         if !self.held.is_empty() {
             let (fine, held, filter) = (&self.fine, &self.held, &self.filter);
