@@ -101,6 +101,28 @@ fn cloth_of(model: &Model) -> Cloth {
     Cloth { resolution: [nx, ny], center: DVec3::ZERO, ..Cloth::square_metre(nx, springs) }
 }
 
+/// The relative residual of the grid solver's last solution, recomputed by `checker` from the
+/// spring list. The step wrote the state, so its input is rebuilt from the copies it took at its
+/// start.
+fn recomputed_residual(
+    grid: &Implicit<f64>,
+    checker: &mut SpringListSolver<f64>,
+    dynamics: &Dynamics<f64>,
+    h: f64,
+    drag: f64,
+) -> f64 {
+    let Solver::Grid(solver) = &grid.solver else { unreachable!("a lone cloth has a grid solver") };
+    let input = StepInput {
+        positions: &grid.positions,
+        velocities: &grid.velocities,
+        forces: &grid.forces,
+        h,
+        drag,
+        held: &[],
+    };
+    checker.relative_residual_of(&input, dynamics, solver.delta_v())
+}
+
 /// Steps the 64² cloth with both solvers side by side, each from its own state, and checks
 /// every multigrid solve against a residual recomputed from the spring list.
 #[test]
@@ -114,17 +136,7 @@ fn multigrid_solves_reach_the_tolerance_in_a_fraction_of_block_jacobis_iteration
     let steps = 30;
     for _ in 0..steps {
         grid.step(&mut grid_state, &mut dynamics, 0.0, H).expect("nothing interrupts it");
-        let Solver::Grid(solver) = &grid.solver else { unreachable!() };
-        // The step wrote the state; rebuild its input from the copies it took at its start.
-        let input = StepInput {
-            positions: &grid.positions,
-            velocities: &grid.velocities,
-            forces: &grid.forces,
-            h: H,
-            drag,
-            held: &[],
-        };
-        let residual = checker.relative_residual_of(&input, &dynamics, solver.delta_v());
+        let residual = recomputed_residual(&grid, &mut checker, &dynamics, H, drag);
         assert!(residual <= 1.01e-6, "recomputed relative residual {residual}");
         list.step(&mut list_state, &mut dynamics, 0.0, H).expect("nothing interrupts it");
     }
@@ -556,16 +568,7 @@ fn a_solve_that_refills_its_coarse_levels_part_way_still_reaches_its_tolerance()
         let h = if k < steps { H } else { 2.0 * H };
         let before = refills(&grid);
         grid.step(&mut state, &mut dynamics, 0.0, h).expect("nothing interrupts it");
-        let Solver::Grid(solver) = &grid.solver else { unreachable!() };
-        let input = StepInput {
-            positions: &grid.positions,
-            velocities: &grid.velocities,
-            forces: &grid.forces,
-            h,
-            drag,
-            held: &[],
-        };
-        let residual = checker.relative_residual_of(&input, &dynamics, solver.delta_v());
+        let residual = recomputed_residual(&grid, &mut checker, &dynamics, h, drag);
         assert!(residual <= 1.01e-6, "step {k}: recomputed relative residual {residual}");
         if k == 0 || k == steps {
             assert_eq!(refills(&grid), before + 1, "step {k} starts on levels of its own");
