@@ -778,7 +778,7 @@ fn drape_on_sphere(integrator: &str, dt: f64, duration: f64, estimate: &str, fps
 }
 
 /// The drape onto the sphere by symplectic Euler at 2.5e-6 s, 40 times below its stability bound
-/// (docs/accuracy.md checks it against RK4), at 0.5, 1 and 2.5 s: each time's positions and their
+/// (docs/accuracy.md checks it against RK4), at [`Self::TIMES`]: each time's positions and their
 /// largest distance from the same run at 5e-6 s, which bounds the reference's own error as long
 /// as halving the step at least halves it (in contact the error shrinks at first order or stays
 /// on a plateau, and on a plateau the distance is about the error itself).
@@ -787,14 +787,14 @@ struct DrapeReference {
 }
 
 impl DrapeReference {
-    const TIMES: [f64; 3] = [0.5, 1.0, 2.5];
+    const TIMES: [f64; 6] = [0.5, 0.75, 1.0, 1.25, 1.5, 2.5];
 
     fn get() -> &'static Self {
         static REFERENCE: std::sync::OnceLock<DrapeReference> = std::sync::OnceLock::new();
         REFERENCE.get_or_init(|| {
             let (fine, coarse) = std::thread::scope(|s| {
                 let at =
-                    |dt: f64| s.spawn(move || run(drape_on_sphere("symplectic_euler", dt, 2.5, "none", 2.0)));
+                    |dt: f64| s.spawn(move || run(drape_on_sphere("symplectic_euler", dt, 2.5, "none", 4.0)));
                 let (fine, coarse) = (at(2.5e-6), at(5e-6));
                 (fine.join().unwrap(), coarse.join().unwrap())
             });
@@ -831,26 +831,26 @@ fn largest_distance(a: &[f64], b: &[f64]) -> f64 {
         .fold(0.0, f64::max)
 }
 
-/// Runs the drape with `integrator` at `dt` to `t` with the default estimate and checks it
-/// against the reference: companions at half the step, and an estimate within a factor 3 of the
-/// true error whichever way the reference's own error leans.
-fn check_contact_estimate(integrator: &str, dt: f64, t: f64) -> f64 {
+/// Runs the drape with `integrator` at `dt` to `t` with the default estimate, which in contact
+/// runs its companion at half the step: the estimate, the run's distance from the reference (the
+/// true error) and the bound on the reference's own error, asked to be well below the true error.
+fn contact_estimate(integrator: &str, dt: f64, t: f64) -> (f64, f64, f64) {
     let r = run(drape_on_sphere(integrator, dt, t, "richardson", 1.0 / t));
     assert_eq!(r.stats.status, Status::Succeeded);
     assert_eq!(r.stats.error.as_ref().unwrap().companion_step, Some(CompanionStep::Halved));
     let (reference, bound) = DrapeReference::get().at(t);
     let truth = largest_distance(&last_positions(&r), reference);
-    let (estimate, _) = estimate_of(&r);
     assert!(
         bound < 0.25 * truth,
         "the reference is {bound} m from its refinement, the run {truth} m from it"
     );
-    let (low, high) = (estimate / (truth + bound), estimate / (truth - bound));
-    assert!(
-        low > 1.0 / 3.0 && high < 3.0,
-        "{integrator} at dt {dt} to {t} s: estimate {estimate:.3e} m, true error {truth:.3e} ± {bound:.1e} m"
-    );
-    estimate / truth
+    (estimate_of(&r).0, truth, bound)
+}
+
+/// Whether `estimate` is within `factor` of the true error whichever way the reference's own error
+/// leans.
+fn within_factor(factor: f64, (estimate, truth, bound): (f64, f64, f64)) -> bool {
+    estimate / (truth + bound) > 1.0 / factor && estimate / (truth - bound) < factor
 }
 
 #[test]
@@ -859,22 +859,29 @@ fn in_contact_an_explicit_run_near_its_stability_limit_has_an_estimate_within_a_
     // to be missing. The halved companion's is within 0.7 to 2.2 of the true error at 0.5 s and 1 s.
     for integrator in ["symplectic_euler", "rk4"] {
         for t in [0.5, 1.0] {
-            check_contact_estimate(integrator, 2e-4, t);
+            let measured = contact_estimate(integrator, 2e-4, t);
+            assert!(within_factor(3.0, measured), "{integrator} to {t} s: {measured:?}");
         }
     }
 }
 
 #[test]
-fn in_contact_implicit_eulers_estimate_is_within_a_factor_three_and_bounds_the_rest() {
+fn in_contact_implicit_eulers_estimate_is_right_on_average_while_landing_and_bounds_the_rest() {
     // At 0.01 s a companion at 0.02 s is five times further from the truth than the run
-    // (its estimate was 4 times the true error at 0.5 s and 9 times at 2.5 s, the cloth settled):
-    // companions at half the step are within a factor 3 at 0.5 s and 1 s.
-    for t in [0.5, 1.0] {
-        check_contact_estimate("implicit_euler", 0.01, t);
-    }
+    // (its estimate was 4 times the true error at 0.5 s and 9 times at 2.5 s, the cloth settled),
+    // so companions run at half the step. While the cloth lands and folds, which way a fold goes
+    // differs between the run and its companion, and the estimate of a first-order run, twice
+    // their distance, is then up to three times the true error (more where the companion's error
+    // is not half the run's): as measured, 0.81 to 2.99 times at the five times below, 1.28 times
+    // in their geometric mean.
+    let landing = [0.5, 0.75, 1.0, 1.25, 1.5].map(|t| contact_estimate("implicit_euler", 0.01, t));
+    let ratios = landing.map(|(estimate, truth, _)| estimate / truth);
+    let geometric_mean = (ratios.iter().map(|r| r.ln()).sum::<f64>() / ratios.len() as f64).exp();
+    assert!((1.0 / 1.5..1.5).contains(&geometric_mean), "{geometric_mean} of {ratios:?}");
+    assert!(landing.iter().all(|&measured| within_factor(4.0, measured)), "{landing:?}");
     // Settled, the run and its companion rest where each one's path left it (static friction
     // holds a range of shapes), so the estimate is not asymptotic: it bounds the true error
-    // from above, within 3 times the most the error can be (2.9 times as measured).
+    // from above, within 3 times the most the error can be (2.6 times as measured).
     let t = 2.5;
     let r = run(drape_on_sphere("implicit_euler", 0.01, t, "richardson", 1.0 / t));
     let (reference, bound) = DrapeReference::get().at(t);

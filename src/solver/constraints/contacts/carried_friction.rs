@@ -62,10 +62,12 @@ use crate::solver::math::vectors::Vectors;
 use crate::solver::state::State;
 
 /// How stiffly a solve holds a particle against the surface it touched: `κ` in the stiffness
-/// `κ m / h²` along the contact normal. The solve then takes a held particle inward by a `1 / 101`
-/// of what it would without; any `κ` from 30 to 1,000 brings the 128² sphere drape at 1/120 s to
-/// within 3 mm of its converged lowest point (`docs/decisions.md`).
-pub(crate) const HOLD_STIFFNESS: f64 = 100.0;
+/// `κ m / h²` along the contact normal. The solve then takes a held particle inward by `1 / 301`
+/// of what it would without. Any `κ` from 30 to 1,000 brings the 128² sphere drape at 1/120 s to
+/// within 3 mm of its converged lowest point; at the frame interval, where `κ m / h²` is weakest
+/// against the springs, 300 is the one of 100, 300 and 1,000 that brings it to rest whatever the
+/// solve's small errors (`docs/decisions.md`, "The hold's stiffness, `κ`, raised to 300").
+pub(crate) const HOLD_STIFFNESS: f64 = 300.0;
 
 /// How near a surface, in metres, a held particle that the projection did not stop again must
 /// stay to be held in the next solve too: a particle lying still on a curved surface, or one the

@@ -16,9 +16,9 @@ use crate::solver::simulation::{Config, Simulation};
 use crate::solver::state::State;
 
 /// The most iterations a solve of the 30² mesh drape takes with the aggregation V-cycle, warm
-/// (in the run) and cold (from zero, its contacts held as the run holds them): 28 and 34 as
+/// (in the run) and cold (from zero, its contacts held as the run holds them): 37 and 33 as
 /// measured, with room for rounding.
-const AGGREGATION_MOST: usize = 36;
+const AGGREGATION_MOST: usize = 39;
 const AGGREGATION_COLD: usize = 36;
 
 /// The performance peers' hanging cloth at `n × n`: 1 m², 1 kg, every spring at k = 5000 N/m and
@@ -417,7 +417,7 @@ fn aggregation_solves_a_mesh_in_contact_in_a_fraction_of_block_jacobis_iteration
     let (_, with_aggregation) = solve(&mut aggregation, &mut dynamics);
     let (_, with_jacobi) = solve(&mut jacobi, &mut dynamics);
     assert!(with_aggregation <= AGGREGATION_COLD, "the V-cycle took {with_aggregation}");
-    // 218 against 34 as measured: the held contacts' blocks make their rows more diagonal,
+    // 224 against 33 as measured: the held contacts' blocks make their rows more diagonal,
     // which helps block Jacobi most.
     assert!(
         with_jacobi >= 6 * with_aggregation,
@@ -584,11 +584,12 @@ fn a_solve_that_refills_its_coarse_levels_part_way_still_reaches_its_tolerance()
     );
 }
 
-/// With the default stop, a drape in contact at the frame interval solves most steps on older
+/// With the default stop, a drape in contact at the frame interval solves many steps on older
 /// coarse levels: the 64² sheet falling onto the ball and settling on it refills them on fewer
-/// than half of its 360 steps (113, as measured), with no solve at the cap.
+/// than three in five of its 360 steps (189 as measured; 113 when contacts were held a third as
+/// stiffly), with no solve at the cap.
 #[test]
-fn a_drape_solves_most_steps_on_older_coarse_levels() {
+fn a_drape_solves_many_steps_on_older_coarse_levels() {
     let (model, mut config) = drape_onto_sphere(64);
     config.settings = IntegratorSettings::default();
     let mut simulation = Simulation::<f64>::new(&model, &config);
@@ -602,5 +603,5 @@ fn a_drape_solves_most_steps_on_older_coarse_levels() {
     };
     println!("{} refills in {steps} steps, {stats:?}", refills(implicit));
     assert_eq!(stats.unconverged_solves, 0, "{stats:?}");
-    assert!(2 * refills(implicit) < steps, "{} refills in {steps} steps", refills(implicit));
+    assert!(5 * refills(implicit) < 3 * steps, "{} refills in {steps} steps", refills(implicit));
 }
