@@ -456,12 +456,13 @@ fn a_cloth_falling_onto_the_floor_stops_once_it_lies_there() {
 fn a_cloth_held_by_a_collider_is_at_rest() {
     // Flat at rest length on the floor from the start: gravity pushes into the plane and the
     // projection takes that away every step, so no velocity changes and the run stops at its
-    // first check (64 steps), though the force sum on each particle is its weight.
+    // first check (33 steps, a thirtieth of a second), though the force sum on each particle is
+    // its weight.
     let r = run(json!({"duration": 1.0, "dt": 1e-3, "stop_at_rest": 1e-3,
         "bodies": [{"type": "cloth", "resolution": [6, 6], "center": [0, 0, 0]}],
         "colliders": [{"type": "plane", "friction": 1.0}], "error_estimate": "none",
         "output": {"frames": "final"}}));
-    assert_eq!((r.stats.stopped_at_rest, r.stats.steps), (Some(0.064), 64));
+    assert_eq!((r.stats.stopped_at_rest, r.stats.steps), (Some(0.033), 33));
     // Draped over a round table onto the floor (examples/tablecloth.json, run longer): the
     // stretched springs pull and the table pushes back. It stops once settled, where a run to
     // the end leaves it. (The drape over a ball of examples/drape_sphere.json does not settle:
@@ -482,10 +483,10 @@ fn a_cloth_held_by_a_collider_is_at_rest() {
 }
 
 /// Two particles released at rest on a plane tilted by `degrees` with friction 0.5, stepped by
-/// implicit Euler at `dt` for two seconds, checked for rest (5 mm/s) as `drape run` checks.
-fn on_a_slope(degrees: f64, dt: f64) -> Recording {
+/// implicit Euler at `dt` for two seconds, checked for rest (`stop_at_rest`) as `drape run` checks.
+fn on_a_slope(degrees: f64, dt: f64, stop_at_rest: Option<f64>) -> Recording {
     let (sin, cos) = degrees.to_radians().sin_cos();
-    run(json!({"duration": 2.0, "dt": dt, "integrator": "implicit_euler", "stop_at_rest": 0.005,
+    run(json!({"duration": 2.0, "dt": dt, "integrator": "implicit_euler", "stop_at_rest": stop_at_rest,
         "bodies": [{"type": "chain", "start": [0, 0, 0], "end": [0, 0, 0.1], "count": 2}],
         "colliders": [{"type": "plane", "point": [0, 0, 0], "normal": [-sin, cos, 0], "friction": 0.5}],
         "error_estimate": "none", "output": {"frames": "final"}}))
@@ -497,11 +498,14 @@ fn static_friction_holds_a_particle_on_a_slope_at_any_step() {
     // slides them, by `dt² g sin 20°` down the slope; from then on each is held to the point where
     // it stuck by its anchor spring, of stiffness `κ m / dt²`, which stretches by `1 / κ` of that
     // slide to balance the pull down the slope (to the solve's tolerance), and they stay put: at
-    // rest at the first check (64 steps), by their displacement as by their velocity.
+    // rest at the first check (after a thirtieth of a second: 2 steps and 33 steps), by their
+    // displacement as by their velocity, and where the anchor spring holds them after 2 s.
     let g = 9.81;
-    for dt in [1.0 / 60.0, 1e-3] {
-        let held = on_a_slope(20.0, dt);
-        assert_eq!((held.stats.stopped_at_rest, held.stats.steps), (Some(64.0 * dt), 64), "dt {dt}");
+    for (dt, first_check) in [(1.0 / 60.0, 2), (1e-3, 33)] {
+        let at_rest = on_a_slope(20.0, dt, Some(0.005));
+        let stopped = (at_rest.stats.stopped_at_rest, at_rest.stats.steps);
+        assert_eq!(stopped, (Some(first_check as f64 * dt), first_check), "dt {dt}");
+        let held = on_a_slope(20.0, dt, None);
         let first_step = dt * dt * g * 20f64.to_radians().sin();
         let expected = first_step * (1.0 + 1.0 / HOLD_STIFFNESS);
         let slid = last_positions(&held)[0].hypot(last_positions(&held)[1]);
@@ -517,7 +521,7 @@ fn a_particle_on_a_slope_steeper_than_friction_slides_at_coulombs_acceleration()
     let (g, dt) = (9.81, 1.0 / 60.0);
     let (sin, cos) = 40f64.to_radians().sin_cos();
     let a = g * (sin - 0.5 * cos);
-    let slid = on_a_slope(40.0, dt);
+    let slid = on_a_slope(40.0, dt, Some(0.005));
     assert_eq!(slid.stats.stopped_at_rest, None);
     let steps = slid.stats.steps as f64;
     let expected = a * dt * dt * steps * (steps + 1.0) / 2.0 + 0.5 * g * cos * dt * dt;

@@ -519,7 +519,7 @@ export interface components {
                 /** @default 200 */
                 max_iterations: number;
             };
-            /** @description End early once at rest, checked every 64 steps and at each frame after step 0 (`null`, as left out, never): every particle slower than this, in m/s, by its velocity and by its displacement over the last step (a particle that friction holds on a collider can creep with no velocity), and every unpinned particle balanced, its velocity changed by the last step by less than 1 % of |gravity| per second (or this speed per second, if larger, as without gravity). A cloth released still has not begun to fall and is not at rest; one lying still on a collider is. */
+            /** @description End early once at rest, checked after step 0 every 64 steps, or every 1/30 s of simulated time rounded to whole steps if that is fewer, and at each frame (`null`, as left out, never): every particle slower than this, in m/s, by its velocity and by its displacement over the last step (a particle that friction holds on a collider can creep with no velocity), and every unpinned particle balanced, its velocity changed by the last step by less than 1 % of |gravity| per second (or this speed per second, if larger, as without gravity). A cloth released still has not begun to fall and is not at rest; one lying still on a collider is. */
             stop_at_rest?: number | null;
             /**
              * @description `richardson`: a companion run at twice the step (at half the step in a scene with
