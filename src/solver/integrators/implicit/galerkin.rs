@@ -184,28 +184,39 @@ impl<T: Real> BlockStencil<T> {
     ) {
         let (nx, band) = (self.nx, self.band_rows());
         let used = self.used;
+        // The system's couplings are written whole; only the other slots in use start at zero.
+        let mut written = [false; FORWARD];
+        for s in system.coupling_arrays().filter_map(|(offset, _)| slot(offset)) {
+            written[s] = true;
+        }
         let diagonal = system.diagonal_arrays();
         let rows = (self.diagonal.arrays_mut(), self.couplings.arrays_mut());
         in_bands(rows, self.ny, nx, band, &|first, count, (mut d, mut c)| {
             let at = first * nx;
-            for k in 0..count * nx {
-                for (to, from) in d.iter_mut().zip(&diagonal) {
-                    to[k] = from[at + k];
-                }
+            for (to, from) in d.iter_mut().zip(&diagonal) {
+                to[..count * nx].copy_from_slice(&from[at..at + count * nx]);
             }
-            for s in (0..FORWARD).filter(|&s| used[s]) {
+            for s in (0..FORWARD).filter(|&s| used[s] && !written[s]) {
                 for entry in &mut c[9 * s..9 * s + 9] {
                     entry.fill(T::ZERO);
                 }
             }
             for (offset, [ux, uy, uz, sigma]) in system.coupling_arrays() {
                 let Some(s) = slot(offset) else { continue };
-                for k in 0..count * nx {
-                    let (u, p) = ([ux[at + k], uy[at + k], uz[at + k]], at + k);
-                    for r in 0..3 {
-                        for e in 0..3 {
-                            let identity = if r == e { sigma[p] } else { T::ZERO };
-                            c[9 * s + 3 * r + e][k] = T::ZERO - (u[r] * u[e] + identity);
+                let rows = at..at + count * nx;
+                let (u, sigma) = ([&ux[rows.clone()], &uy[rows.clone()], &uz[rows.clone()]], &sigma[rows]);
+                // One entry of the blocks at a time, so that each pass runs along whole arrays.
+                for r in 0..3 {
+                    for e in 0..3 {
+                        let entry = c[9 * s + 3 * r + e][..count * nx].iter_mut().zip(u[r]).zip(u[e]);
+                        if r == e {
+                            for (((to, &a), &b), &sigma) in entry.zip(sigma) {
+                                *to = T::ZERO - (a * b + sigma);
+                            }
+                        } else {
+                            for ((to, &a), &b) in entry {
+                                *to = T::ZERO - a * b;
+                            }
                         }
                     }
                 }
@@ -425,9 +436,10 @@ impl<T: Real> BlockStencil<T> {
                                     let at = ((j * nx + i) as isize + shift) as usize;
                                     let add = |run: &mut [T], from: &[T]| {
                                         let run = &mut run[out + own + m..out + own + m + len];
-                                        let from = from[at..at + 2 * len - 1].iter().step_by(2);
-                                        for ((r, &f), &w) in run.iter_mut().zip(from).zip(&w[..len]) {
-                                            *r = f.mul_add(w, *r);
+                                        // Every other entry: the first of each pair.
+                                        let from = from[at..at + 2 * len - 1].chunks(2);
+                                        for ((r, f), &w) in run.iter_mut().zip(from).zip(&w[..len]) {
+                                            *r = f[0].mul_add(w, *r);
                                         }
                                     };
                                     each_run_of(sum, &mut d, &mut c, |run, e| add(run, block[e]));
