@@ -12,9 +12,10 @@ only a longer run shows (`docs/performance.md`, "Time to rest against Newton, on
 It prints one JSON line per run and then the ratio of Newton's wall time to drape's, for drape's run
 alone and for the whole command with its error estimate: to rest when both rest, or to
 `--max-time` when Newton does not (a lower bound, then); none when drape does not rest. `drape` is
-the release binary at `target/release/drape`; build it first.
+the release binary at `target/release/drape`, which the script first builds from the working tree
+(`cargo build --release --locked --bin drape`), so that a binary left there by another checkout
+is never the one measured.
 
-    cargo build --release --bin drape
     python3 -m venv .venv-newton
     .venv-newton/bin/pip install newton==1.8.0 warp-lang==1.19.0
     .venv-newton/bin/python benches/peers/time_to_rest.py --scene sphere --max-time 40 --drape-dt 1/600
@@ -77,6 +78,7 @@ def main():
     ap.add_argument("--max-time", type=float, default=40.0)
     ap.add_argument("--drape-dt", type=seconds, default=NEWTON_DT)
     args = ap.parse_args()
+    subprocess.run(["cargo", "build", "--release", "--locked", "--bin", "drape"], cwd=ROOT, check=True)
     drape = run_drape(args.scene, args.n, args.drape_dt, args.max_time)
     print(json.dumps(drape), flush=True)
     wp.init()
