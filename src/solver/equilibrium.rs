@@ -20,7 +20,7 @@ use glam::DVec3;
 
 use crate::solver::constraints::contacts::{Collider, Shape};
 use crate::solver::forces::dynamics::Dynamics;
-use crate::solver::forces::springs::{definite_stiffness_block, direction};
+use crate::solver::forces::springs::{direction, stiffness_block};
 use crate::solver::interrupt::Interrupt;
 use crate::solver::math::sym3::Sym3;
 use crate::solver::math::vec3::Vec3;
@@ -131,7 +131,7 @@ impl<'a> Stiffness<'a> {
             .map(|s| {
                 let (i, j) = (s.i as usize, s.j as usize);
                 let Some((n, l)) = direction(Vec3::from_dvec3(x[j] - x[i])) else { return Sym3::ZERO };
-                let block = definite_stiffness_block(s, n, l);
+                let block = stiffness_block(s, n, l);
                 let [xx, yy, zz, ..] = block.entries();
                 diagonal[i] += (xx + yy + zz) / 3.0;
                 diagonal[j] += (xx + yy + zz) / 3.0;

@@ -61,34 +61,29 @@ pub(crate) fn branch_free_force<T: Real>(k: T, rest: T, c: T, [dx, dy, dz, du, d
 /// The stiffness block `K_s` of one spring as implicit Euler's step takes it:
 /// `∂f_i/∂x_i ≈ -K_s`, `∂f_i/∂x_j ≈ K_s`.
 ///
-/// `K_s = k [n nᵀ + α (I - n nᵀ)]` with `α = min(1, |1 - L/l|)`. The exact transverse factor
-/// `1 - L/l` is negative while the spring is compressed: the spring pushes a particle that
-/// leaves its line further out (buckling). Its absolute value keeps `K_s` positive semi-definite
-/// (absolute eigenvalue filtering, Chen et al. 2024), as dropping it would
-/// ([`definite_stiffness_block`], Choi and Ko), but treats that push implicitly: with the term
-/// dropped the push is explicit in the step, and at the frame interval it lifts the compressed
-/// folds of a cloth lying on a collider off it and back every few steps, so the drape does not
-/// settle (`docs/performance.md`, "Time to drape"). Only the step's Jacobian changes, never the
-/// force, so the states at rest are the same, and as the step shrinks both blocks give the same
-/// motion. The cap at 1 keeps the axial factor `1 - α` at least 0.
+/// `K_s = k [n nᵀ + α (I - n nᵀ)]` with `α = max(0, 1 - L/l)`: the positive semi-definite part
+/// of the exact stiffness (Choi and Ko). The exact transverse factor `1 - L/l` is negative while
+/// the spring is compressed: the spring pushes a particle that leaves its line further out
+/// (buckling). That push is left out of the step's matrix, so the step takes it explicitly, as
+/// the force has it. Taking it by its absolute value instead also keeps `K_s` definite, but adds a
+/// drag `h k |1 - L/l|` across every fold that the force does not have, and a fold then settles
+/// in about as many steps whatever the step, which at the frame interval keeps a drape from
+/// coming to rest (`docs/decisions.md`, "A compressed spring's push across it left explicit").
+/// The contacts held in the solve keep the folds lying on a collider on it. Only the step's
+/// Jacobian is approximated, never the force, so the states at rest do not depend on it. It is
+/// also the softest definite stiffness, the one the distance from equilibrium
+/// ([`crate::solver::equilibrium`]) solves with.
 #[inline(always)]
 pub(crate) fn stiffness_block<T: Real>(s: &Spring<T>, n: Vec3<T>, l: T) -> Sym3<T> {
     block(s, n, step_transverse_factor(s.rest_length / l))
 }
 
-/// The step's transverse factor `α = min(1, |1 - L/l|)` of [`stiffness_block`], from `L/l`; the
-/// grid stencil's branch-free rows take it too.
+/// The step's transverse factor `α = max(0, 1 - L/l)` of [`stiffness_block`], from `L/l`; the
+/// grid stencil's branch-free rows take it too. It is below 1 for any positive `L/l`, so the
+/// axial factor `1 - α` stays positive.
 #[inline(always)]
 pub(crate) fn step_transverse_factor<T: Real>(rest_over_length: T) -> T {
-    (T::ONE - rest_over_length).abs().min(T::ONE)
-}
-
-/// The positive semi-definite part of a spring's stiffness `-∂f_i/∂x_i`: the transverse term
-/// dropped while the spring is compressed (Choi and Ko). It is the softest definite stiffness,
-/// the one the distance from equilibrium ([`crate::solver::equilibrium`]) solves with.
-#[inline(always)]
-pub(crate) fn definite_stiffness_block<T: Real>(s: &Spring<T>, n: Vec3<T>, l: T) -> Sym3<T> {
-    block(s, n, (T::ONE - s.rest_length / l).max(T::ZERO))
+    (T::ONE - rest_over_length).max(T::ZERO)
 }
 
 /// `k [n nᵀ + α (I - n nᵀ)]`, as a rank-one term plus a multiple of the identity.
@@ -151,27 +146,20 @@ mod tests {
 
     #[test]
     fn a_stretched_springs_block_is_the_exact_stiffness() {
-        // At l = 1.25: k along the spring, k (1 - L/l) = 20 across it, by both blocks.
-        for block in [stiffness_block, definite_stiffness_block] {
-            let (along, across) = along_and_across(block, 1.25);
-            assert!((along - Vec3::new(100.0, 0.0, 0.0)).length() < 1e-12, "{along:?}");
-            assert!((across - Vec3::new(0.0, 12.0, 16.0)).length() < 1e-12, "{across:?}");
-        }
+        // At l = 1.25: k along the spring, k (1 - L/l) = 20 across it.
+        let (along, across) = along_and_across(stiffness_block, 1.25);
+        assert!((along - Vec3::new(100.0, 0.0, 0.0)).length() < 1e-12, "{along:?}");
+        assert!((across - Vec3::new(0.0, 12.0, 16.0)).length() < 1e-12, "{across:?}");
     }
 
     #[test]
-    fn a_compressed_springs_push_across_is_taken_by_its_absolute_value_in_the_step() {
-        // At l = 0.8 the exact factor across is 1 - 1/0.8 = -0.25: the step's block takes +25,
-        // the definite part 0; along the spring both keep k.
-        let (along, across) = along_and_across(stiffness_block, 0.8);
-        assert!((along - Vec3::new(100.0, 0.0, 0.0)).length() < 1e-12, "{along:?}");
-        assert!((across - Vec3::new(0.0, 15.0, 20.0)).length() < 1e-12, "{across:?}");
-        let (along, across) = along_and_across(definite_stiffness_block, 0.8);
-        assert!((along - Vec3::new(100.0, 0.0, 0.0)).length() < 1e-12, "{along:?}");
-        assert!(across.length() < 1e-12, "{across:?}");
-        // Shorter than half its rest length the factor is capped at 1: k every way.
-        let (along, across) = along_and_across(stiffness_block, 0.25);
-        assert!((along - Vec3::new(100.0, 0.0, 0.0)).length() < 1e-12, "{along:?}");
-        assert!((across - Vec3::new(0.0, 60.0, 80.0)).length() < 1e-12, "{across:?}");
+    fn a_compressed_springs_push_across_is_left_out_of_the_step() {
+        // At l = 0.8 the exact factor across is 1 - 1/0.8 = -0.25: the block takes 0 across and
+        // keeps k along the spring, at any compression.
+        for l in [0.8, 0.25] {
+            let (along, across) = along_and_across(stiffness_block, l);
+            assert!((along - Vec3::new(100.0, 0.0, 0.0)).length() < 1e-12, "{along:?}");
+            assert!(across.length() < 1e-12, "{across:?}");
+        }
     }
 }

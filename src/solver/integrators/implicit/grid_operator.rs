@@ -2,7 +2,7 @@
 //!
 //! On a grid of `nx × ny` particles the system `A = M + Σ_s (e_i - e_j)(e_i - e_j)ᵀ ⊗ S_s` has a
 //! 3×3 diagonal block per particle and one coupling block `-S_s` per spring. A spring's block is
-//! `S = (h c + h² k (1 - α)) n nᵀ + h² k α I` with `α = min(1, |1 - L/l|)` (see
+//! `S = (h c + h² k (1 - α)) n nᵀ + h² k α I` with `α = max(0, 1 - L/l)` (see
 //! [`stiffness_block`](crate::solver::forces::springs::stiffness_block)), a rank-one term plus a
 //! multiple of the identity, so it is stored as four numbers, `u = √(h c + h² k (1 - α)) n` and
 //! `σ = h² k α`, with `S x = u (u·x) + σ x`: two thirds of the memory and half the arithmetic of

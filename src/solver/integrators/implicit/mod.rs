@@ -3,11 +3,11 @@
 //!
 //! One step solves `(M - h ∂f/∂v - h² ∂f/∂x) Δv = h (f + h ∂f/∂x v)`, then sets `v += Δv` and
 //! `x += h v`. Per spring the system has the 3×3 block `S = h D + h² K` (damping and stiffness
-//! blocks); drag adds `h · drag · m` to the mass diagonal. The stiffness block takes its
-//! transverse part, negative under compression, by its absolute value
+//! blocks); drag adds `h · drag · m` to the mass diagonal. The stiffness block drops its
+//! transverse part while a spring is compressed, where it is negative
 //! ([`stiffness_block`](crate::solver::forces::springs::stiffness_block)), so the system is
 //! symmetric positive definite, CG converges at any step size, and a compressed fold's push
-//! outward is taken implicitly. Pinned particles are filtered out of the solve (their rows and
+//! outward is taken explicitly, as the force has it. Pinned particles are filtered out of the solve (their rows and
 //! columns are held at zero), so they never move. The previous step's `Δv` is the starting
 //! guess (zero for the first). A solve runs until its residual is below `reduction` (default 0.01)
 //! times that guess's residual, which keeps its error a fraction of the step's own
