@@ -6,8 +6,9 @@ tablecloth`: `examples/tablecloth.json` without its own solver settings) run as 
 0.005 and the final frame only, its default error estimate included. Newton then runs the same
 sheet with its own triangles and hinges (`newton_drape.py --model triangles`) at 1/60 s, the step
 it is stable at, to rest or to `--max-time`. Newton's rest is judged after every step, drape's
-every 64 steps, so drape may find its rest up to 63 steps late; either can stop in a lull, which
-only a longer run shows (`docs/performance.md`, "Time to rest against Newton, on the sphere").
+every 1/30 s of simulated time, so drape may find its rest up to that late; either can stop in
+a lull, which only a longer run shows (`docs/performance.md`, "Time to rest against Newton, on
+the sphere").
 
 It prints one JSON line per run and then the ratio of Newton's wall time to drape's, for drape's run
 alone and for the whole command with its error estimate: to rest when both rest, or to
