@@ -511,15 +511,16 @@ fn largest_distance(a: &[DVec3], b: &[DVec3]) -> f64 {
     a.iter().zip(b).map(|(p, q)| (*p - *q).length()).fold(0.0, f64::max)
 }
 
-/// The default stop, a hundredth of the starting guess's residual, keeps each solve's error a
-/// small fraction of the step's own: the hanging cloth falling for 1 s, on the grid path (32²)
-/// and the spring-list path (two 16² cloths), at 1/60 and 1/240 s, ends within a fiftieth of
-/// its distance from a 1/4800 s reference of the same run solved to 1e-10, in at most half the
-/// iterations of solves to the tolerance 1e-6 alone (3.3 against 16.8 a step on the grid at
-/// 1/60 s). As measured, the grid cloth at 1/60 s errs by 1.06 % of its step's error and the
-/// other three runs by 0.10 to 0.16 %: the cloth buckles as it falls, and a buckling cloth
-/// amplifies any difference, the solve's among them, as the force's own push across a compressed
-/// spring has it (`docs/decisions.md`, "A compressed spring's push across it left explicit").
+/// The default stop, a hundredth of the starting guess's residual, keeps each solve's error a small
+/// fraction of the step's own: the hanging cloth falling for 1 s, on the grid path (32²) and the
+/// spring-list path (two 16² cloths), at 1/60 and 1/240 s, ends within a fiftieth of its distance
+/// from a 1/4800 s reference of the same run solved to 1e-10, in at most half the iterations of
+/// solves to the tolerance 1e-6 alone (3.3 against 16.8 a step on the grid at 1/60 s, measured with
+/// a compressed spring's push taken into the step). As measured, the grid cloth at 1/60 s errs by
+/// 1.06 % of its step's error and the other three runs by 0.10 to 0.16 %: the cloth buckles as it
+/// falls, and a buckling cloth amplifies any difference, the solve's among them, as the force's own
+/// push across a compressed spring has it (`docs/decisions.md`, "A compressed spring's push across
+/// it left explicit").
 #[test]
 fn a_solve_stopped_at_its_reduction_errs_a_fraction_of_its_step() {
     let (grid, grid_drag) = peers_cloth(32);
