@@ -1,6 +1,6 @@
 //! Steps scenes in contact with implicit Euler at frame-size steps and compares each end with a
-//! small-step reference: the table of `docs/decisions.md` ("Implicit Euler's default step stays a
-//! quarter of the frame interval in contact").
+//! small-step reference: the table of `docs/decisions.md` ("Implicit Euler's default step in
+//! contact is half the frame interval").
 //!
 //! ```sh
 //! cargo run --release --example contact_steps -- [SCENE.json ...]

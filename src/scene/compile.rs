@@ -3,12 +3,15 @@
 //! Time follows the contract: `steps = ceil(duration / dt)` (with a relative slack of 1e-9 so
 //! that an exact division gains no step) and `dt = duration / steps`, so the step never grows
 //! and the last step lands on `duration`. Without a `dt`, the explicit integrators take half the
-//! scene's stability bound (see [`solver::stable_step`]); implicit Euler, stable at any step,
-//! takes a quarter of the frame interval, or that half-bound if it is larger. A scene with
-//! nothing that bounds the step (no springs, no drag) also takes a quarter of the frame interval.
-//! Implicit Euler does not take the whole frame interval in contact: contacts are resolved after
-//! its solve, and at frame-size steps a cloth landing on a collider overstretches until the
-//! collider passes through it (`docs/decisions.md`).
+//! scene's stability bound (see [`solver::stable_step`]), or a quarter of the frame interval in a
+//! scene with nothing that bounds the step (no springs, no drag). Implicit Euler, stable at any
+//! step, takes a share of the frame interval `1 / fps`, or that half-bound if it is larger: half
+//! in a scene with colliders, a quarter without. In contact, friction decides which of many rest
+//! shapes a drape reaches; at half the frame interval the rest shape is as close to a small
+//! step's as at a quarter, and a drape comes to rest in fewer steps. The whole frame interval does
+//! not hold: a sheet landing on a ball stretches to twice its length, and a tablecloth does not
+//! come to rest. Without contact nothing hides the step's error, so the step stays at a quarter
+//! (`docs/decisions.md`, "Implicit Euler's default step in contact is half the frame interval").
 
 use std::sync::Arc;
 
@@ -237,14 +240,18 @@ impl Scene {
         ]
     }
 
+    /// The step of a scene without `dt` (the module's first paragraph says how it is chosen).
     fn automatic_dt(&self, model: &Model, integrator: IntegratorKind) -> f64 {
-        let frame_quarter = 0.25 / self.output.fps;
+        let frame = 1.0 / self.output.fps;
         let half_bound =
             solver::stable_step(model, self.drag).map(|h| 0.5 * h * integrator.stability_factor());
         let dt = match (integrator, half_bound) {
-            (_, None) => frame_quarter,
-            (IntegratorKind::ImplicitEuler, Some(h)) => h.max(frame_quarter),
+            (IntegratorKind::ImplicitEuler, bound) => {
+                let share = if self.colliders.is_empty() { 0.25 } else { 0.5 };
+                bound.map_or(share * frame, |h| h.max(share * frame))
+            }
             (_, Some(h)) => h,
+            (_, None) => 0.25 * frame,
         };
         dt.min(self.duration)
     }

@@ -197,9 +197,22 @@ fn without_dt_the_step_is_half_the_stability_bound() {
     let bound = crate::solver::stable_step(&compiled.model, 0.0).unwrap();
     assert_eq!(compiled.dt_source, DtSource::Stability);
     assert!(compiled.config.dt <= 0.5 * bound && compiled.config.dt > 0.49 * bound);
-    let implicit =
-        scene(json!({"duration": 1.0, "integrator": "implicit_euler", "bodies": [cloth()]})).unwrap();
-    assert_eq!(implicit.compile().config.dt, 1.0 / 120.0);
+}
+
+#[test]
+fn without_dt_implicit_euler_takes_half_the_frame_interval_in_contact_and_a_quarter_without() {
+    let implicit = |colliders: Value, fps: f64| {
+        let s = scene(json!({"duration": 1.0, "integrator": "implicit_euler", "bodies": [cloth()],
+                             "colliders": colliders, "output": {"fps": fps}}))
+        .unwrap();
+        let compiled = s.compile();
+        assert_eq!(compiled.dt_source, DtSource::Stability);
+        compiled.config.dt
+    };
+    let floor = json!([{"type": "plane"}]);
+    assert_eq!(implicit(json!([]), 30.0), 1.0 / 120.0);
+    assert_eq!(implicit(floor.clone(), 30.0), 1.0 / 60.0);
+    assert_eq!(implicit(floor, 24.0), 1.0 / 48.0);
 }
 
 #[test]

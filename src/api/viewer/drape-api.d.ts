@@ -478,7 +478,7 @@ export interface components {
              * @enum {string}
              */
             integrator: "explicit_euler" | "symplectic_euler" | "verlet" | "rk4" | "implicit_euler";
-            /** @description Step, in seconds; left out (or `null`), one below the scene's stability bound is chosen. */
+            /** @description Step, in seconds, shortened if needed so that it divides `duration`; left out (or `null`), half the scene's stability bound, or with `implicit_euler` half the frame interval (`1 / output.fps`) in a scene with colliders and a quarter without, or that half-bound if it is larger. */
             dt?: number | null;
             /**
              * @default f64
