@@ -4,11 +4,11 @@
 //! cargo bench --bench time_to_drape [-- RUNS] [grid|mesh|table]
 //! ```
 //!
-//! Three scenes, each run as `drape run` runs it, at the frame interval (1/60 s), from release until
-//! it is at rest as `stop_at_rest: 0.005` judges it (every particle slower than 5 mm/s, by its
-//! velocity and by its displacement over the step, and balanced, its velocity changed by less than
-//! 1 % of gravity over the step; checked every 1/30 s, two steps), or to its limit of simulated
-//! time:
+//! Three scenes, each run as `drape run` runs it, at 1/60 s (implicit Euler's default step in
+//! contact at 30 frames a second), from release until it is at rest as `stop_at_rest: 0.005`
+//! judges it (every particle slower than 5 mm/s, by its velocity and by its displacement over the
+//! step, and balanced, its velocity changed by less than 1 % of gravity over the step; checked
+//! every 1/30 s, two steps), or to its limit of simulated time:
 //!
 //! - `grid 128²`: `examples/drape_sphere.json` at 128 × 128 particles, which takes the grid
 //!   solver (conjugate gradients preconditioned by the geometric multigrid), up to 20 s;
