@@ -8,11 +8,11 @@
 //! ([`stiffness_block`](crate::solver::forces::springs::stiffness_block)), so the system is
 //! symmetric positive definite, CG converges at any step size, and a compressed fold's push
 //! outward is taken explicitly, as the force has it. Pinned particles are filtered out of the
-//! solve (their rows and columns are held at zero), so they never move. The previous step's `Δv` is the starting
-//! guess (zero for the first). A solve runs until its residual is below `reduction` (default 0.01)
-//! times that guess's residual, which keeps its error a fraction of the step's own
-//! ([`stopping`]; the first solve goes without), or below `tolerance` (default 1e-6) times the
-//! right-hand side's norm, or to the iteration cap.
+//! solve (their rows and columns are held at zero), so they never move. The previous step's `Δv`
+//! is the starting guess (zero for the first). A solve runs until its residual is below
+//! `reduction` (default 0.01) times that guess's residual, which keeps its error a fraction of the
+//! step's own ([`stopping`]; the first solve goes without), or below `tolerance` (default 1e-6)
+//! times the right-hand side's norm, or to the iteration cap.
 //!
 //! Two solvers share this step:
 //! - a scene that is one grid cloth ([`grid_solver`]) stores the system as row stencils
